@@ -1,0 +1,181 @@
+# i2m: one non-recursive GNU Makefile (GNU make >= 3.82).
+#
+#   make                 bin/i2m, bin/i2m-info, bin/i2m-check, lib/libi2m.a (release)
+#   make check           every test: unit tests (release, then ASan+UBSan), tool and script
+#                        tests, threaded tests under ThreadSanitizer; installs missing Debian
+#                        packages first when run as root
+#   make bench           benchmarks; figures printed and written to bench/results/*.json
+#   make demo            meshes the knee atlas shipped in run/data end to end
+#   make DEBUG=1 | SANITIZE=address,undefined | SANITIZE=thread    other configurations
+#   make V=1             show the commands
+#
+# Objects go to build/<config>/.  Release binaries and the library go to bin/ and lib/;
+# other configurations keep theirs under build/<config>/.
+
+.DEFAULT_GOAL := all
+SHELL := /bin/sh
+
+# ---- toolchain ----------------------------------------------------------------------------
+MPICC_PATH := $(shell command -v mpicc 2>/dev/null)
+ifeq ($(origin CC),default)
+  CC := $(if $(MPICC_PATH),mpicc,cc)
+endif
+HAVE_MPI ?= $(if $(MPICC_PATH),1,0)
+OMPFLAGS ?= -fopenmp
+FPFLAGS  ?= -ffp-contract=off
+PYTHON   ?= /usr/bin/python3
+
+# ---- configuration ------------------------------------------------------------------------
+ifdef SANITIZE
+  ifeq ($(SANITIZE),thread)
+    CONFIG := tsan
+  else
+    CONFIG := asan
+  endif
+  OPTFLAGS ?= -O1 -g -fno-omit-frame-pointer -fsanitize=$(SANITIZE) -fno-sanitize-recover=all -DI2M_DEBUG
+  SANFLAGS := -fsanitize=$(SANITIZE)
+else ifdef DEBUG
+  CONFIG := debug
+  OPTFLAGS ?= -O0 -g -DI2M_DEBUG
+else
+  CONFIG := release
+  OPTFLAGS ?= -O3 -g
+endif
+
+BUILD := build/$(CONFIG)
+ifeq ($(CONFIG),release)
+  BINDIR := bin
+  LIBDIR := lib
+else
+  BINDIR := $(BUILD)/bin
+  LIBDIR := $(BUILD)/lib
+endif
+
+WARNFLAGS := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes $(if $(WERROR),-Werror)
+CPPFLAGS  += -Iinclude -D_POSIX_C_SOURCE=200809L -DI2M_HAVE_MPI=$(HAVE_MPI)
+ALL_CFLAGS = -std=c11 $(WARNFLAGS) $(OPTFLAGS) $(FPFLAGS) $(OMPFLAGS) -MMD -MP $(CFLAGS)
+LDLIBS    += -lz -lhwloc -lm
+TEST_LDLIBS := -lcunit
+
+ifeq ($(V),1)
+  Q :=
+else
+  Q := @
+endif
+
+# ---- sources ------------------------------------------------------------------------------
+LAYERS     := base geom image delaunay refine threads io
+ifeq ($(HAVE_MPI),1)
+  LAYERS   += dist
+endif
+LIB_SRC    := $(foreach l,$(LAYERS),$(wildcard src/$(l)/*.c))
+LIB_OBJ    := $(LIB_SRC:%.c=$(BUILD)/%.o)
+LIB        := $(LIBDIR)/libi2m.a
+
+CLI_SRC    := $(wildcard src/cli/*.c)
+INFO_SRC   := tools/i2m_info.c
+CHECK_SRC  := $(wildcard tools/check/*.c)
+MKIMG_SRC  := $(wildcard tools/i2m_mkimage.c)
+BENCH_SRC  := $(wildcard bench/*.c)
+UNIT_SRC   := $(wildcard tests/unit/test_*.c)
+UNIT_BIN   := $(UNIT_SRC:tests/unit/%.c=$(BUILD)/tests/%)
+
+PROGRAMS := $(BINDIR)/i2m-info $(BINDIR)/i2m-check
+ifneq ($(MKIMG_SRC),)
+  PROGRAMS += $(BINDIR)/i2m-mkimage
+endif
+ifneq ($(CLI_SRC),)
+  PROGRAMS += $(BINDIR)/i2m
+endif
+
+DEPS_STAMP := build/.deps-ok
+
+# ---- build rules --------------------------------------------------------------------------
+.SECONDARY:
+.PHONY: all lib programs unit-tests check check-unit check-scripts check-layers bench demo deps clean
+
+all: $(PROGRAMS) $(LIB)
+lib: $(LIB)
+programs: $(PROGRAMS)
+
+$(DEPS_STAMP):
+	$(Q)sh tools/ensure-deps.sh
+	$(Q)mkdir -p build && touch $@
+
+$(BUILD)/%.o: %.c | $(DEPS_STAMP)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) $(CPPFLAGS) $(ALL_CFLAGS) -c $< -o $@
+
+$(LIB): $(LIB_OBJ)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  AR      $@")
+	$(Q)rm -f $@ && ar rcs $@ $^
+
+$(BINDIR)/i2m: $(CLI_SRC:%.c=$(BUILD)/%.o) $(LIB)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) $(ALL_CFLAGS) $(SANFLAGS) -o $@ $^ $(LDFLAGS) $(LDLIBS)
+
+$(BINDIR)/i2m-info: $(INFO_SRC:%.c=$(BUILD)/%.o) $(LIB)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) $(ALL_CFLAGS) $(SANFLAGS) -o $@ $^ $(LDFLAGS) $(LDLIBS)
+
+$(BINDIR)/i2m-check: $(CHECK_SRC:%.c=$(BUILD)/%.o) $(LIB)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) $(ALL_CFLAGS) $(SANFLAGS) -o $@ $^ $(LDFLAGS) $(LDLIBS)
+
+$(BINDIR)/i2m-mkimage: $(MKIMG_SRC:%.c=$(BUILD)/%.o) $(LIB)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) $(ALL_CFLAGS) $(SANFLAGS) -o $@ $^ $(LDFLAGS) $(LDLIBS)
+
+$(BUILD)/tests/%: $(BUILD)/tests/unit/%.o $(LIB)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) $(ALL_CFLAGS) $(SANFLAGS) -o $@ $^ $(LDFLAGS) $(LDLIBS) $(TEST_LDLIBS)
+
+$(BUILD)/bench/%: $(BUILD)/bench/%.o $(LIB)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) $(ALL_CFLAGS) $(SANFLAGS) -o $@ $^ $(LDFLAGS) $(LDLIBS)
+
+unit-tests: $(UNIT_BIN)
+
+# ---- tests --------------------------------------------------------------------------------
+# check: release build and unit tests, the same unit tests under ASan+UBSan, the script
+# tests (tools, writers with meshio, error paths, end-to-end), threaded tests under TSan.
+check: $(DEPS_STAMP)
+	$(Q)$(MAKE) --no-print-directory WERROR=1 all unit-tests
+	$(Q)$(MAKE) --no-print-directory WERROR=1 check-layers
+	$(Q)$(MAKE) --no-print-directory WERROR=1 check-unit
+	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=address,undefined all unit-tests
+	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=address,undefined check-unit
+	$(Q)$(MAKE) --no-print-directory WERROR=1 check-scripts
+	@echo "make check: all tests passed"
+
+check-unit: $(UNIT_BIN)
+	$(Q)sh tests/run_unit.sh $(BUILD)/tests $(CONFIG)
+
+check-scripts: all
+	$(Q)sh tests/run_scripts.sh
+
+check-layers:
+	$(Q)sh tools/check_layers.sh
+
+# ---- benchmarks and demo --------------------------------------------------------------------
+bench: all $(BENCH_SRC:bench/%.c=$(BUILD)/bench/%)
+	$(Q)sh bench/run.sh $(BUILD)/bench
+
+demo: all
+	$(Q)sh run/demo.sh
+
+deps:
+	$(Q)sh tools/ensure-deps.sh
+
+clean:
+	rm -rf build bin lib
+
+-include $(wildcard $(BUILD)/src/*/*.d $(BUILD)/tools/*.d $(BUILD)/tools/check/*.d $(BUILD)/tests/unit/*.d $(BUILD)/bench/*.d)

@@ -1,0 +1,194 @@
+/* i2m delaunay layer (layer 3): a 3D Delaunay tetrahedralization in flat arrays.
+ *
+ * Storage (ARCHITECTURE §2): tet t has vertices tv[4t+i] and, across the face opposite its
+ * vertex i, the neighbour tn[4t+i] = 4t'+j (t' the neighbour, j the index of the shared
+ * face in t').  Every tet is positively oriented (i2m_orient3d > 0).  A virtual box of 8
+ * corners (vertex ids 0..7) encloses everything, so there are no ghost tets and every face
+ * has a neighbour except the 12 box-hull faces (tn = I2M_DT_NONE).
+ *
+ * Per tet, meta[t] packs (generation << 3) | frozen << 2 | mark << 1 | dead.  The generation
+ * grows each time the slot is killed, so a (tet, generation) record kept in a work list is
+ * recognisably stale once the tet is gone.  Dead slots are reused.
+ *
+ * Degeneracies are decided by symbolic perturbation keyed on each vertex's global id, stored
+ * bit-for-bit in the 4th coordinate slot (xyzw[4v+3]) so that coordinates and id share a
+ * cache line.
+ *
+ * Concurrency: all changes go through a per-thread context (i2m_dt_ctx_t).  In a threaded
+ * run the context locks every vertex its cavity touches with a compare-and-swap on the
+ * vertex lock word and reports I2M_DT_ROLLBACK (having changed nothing) when another thread
+ * holds one; in a sequential run locking is off and costs nothing.  Arrays are never
+ * reallocated while several contexts are active: capacity is reserved up front
+ * (i2m_dt_reserve) and an insertion that would need more returns I2M_DT_FULL. */
+#ifndef I2M_DT_H
+#define I2M_DT_H
+
+#include <stdatomic.h>
+#include <stdbool.h>
+
+#include "i2m/base.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define I2M_DT_NONE UINT32_MAX
+
+/** Vertex kinds. */
+enum { I2M_VK_DEAD = 0, I2M_VK_BOX = 1, I2M_VK_FREE = 2, I2M_VK_SURFACE = 3 };
+
+/** meta bits. */
+#define I2M_TM_DEAD 1u
+#define I2M_TM_MARK 2u
+#define I2M_TM_FROZEN 4u
+#define I2M_TM_GEN_SHIFT 3
+
+typedef struct i2m_dt {
+  /* vertices: slots 0..nv-1 (some may be dead) */
+  _Atomic uint32_t nv_atomic; /**< vertex slots handed out (high-water mark) */
+  uint32_t cap_v;
+  double *xyzw;             /**< owned: [cap_v][4] x, y, z, and the global id's bits */
+  uint8_t *vkind;           /**< owned: [cap_v] I2M_VK_* */
+  uint32_t *vtet;           /**< owned: [cap_v] a live tet incident to the vertex */
+  _Atomic uint32_t *vlock;  /**< owned: [cap_v] 0 = free, else owner context id */
+  /* tets: slots 0..nt-1 (some dead, on free lists) */
+  _Atomic uint32_t nt_atomic; /**< slots handed out (high-water mark) */
+  uint32_t cap_t;
+  uint32_t *tv;             /**< owned: [cap_t][4] vertex ids */
+  uint32_t *tn;             /**< owned: [cap_t][4] 4*t'+j, or I2M_DT_NONE on the box hull */
+  _Atomic uint32_t *meta;   /**< owned: [cap_t] generation, frozen, mark, dead */
+  unsigned char *tpay;      /**< owned: [cap_t][pay_size] user payload per tet, or NULL */
+  size_t pay_size;          /**< bytes of payload per tet (0 = none) */
+  /* shared free lists of dead slots (filled by i2m_dt_ctx_flush between parallel phases) */
+  uint32_t *free_t;         /**< owned: stack of dead tet slots */
+  uint32_t nfree_t, cap_free_t;
+  uint32_t *free_v;         /**< owned: stack of dead vertex slots */
+  uint32_t nfree_v, cap_free_v;
+  double box_lo[3], box_hi[3]; /**< the virtual box corners' extent */
+} i2m_dt_t;
+
+/** Result of an insertion or removal attempt. */
+typedef enum {
+  I2M_DT_OK = 0,
+  I2M_DT_ROLLBACK,         /**< another thread holds a vertex lock; nothing changed */
+  I2M_DT_NOT_IN_CONFLICT,  /**< the seed tet does not contain the point in its circumball */
+  I2M_DT_DUPLICATE,        /**< the point coincides with an existing vertex */
+  I2M_DT_FROZEN,           /**< the cavity reaches a frozen tet; nothing changed */
+  I2M_DT_STALE,            /**< the seed tet is dead or changed since it was recorded */
+  I2M_DT_FULL,             /**< not enough reserved capacity; nothing changed */
+  I2M_DT_FAILED            /**< removal could not re-triangulate (never expected) */
+} i2m_dt_status_t;
+
+/** Boundary face of a cavity: the face of cavity tet t opposite its vertex i. */
+typedef struct {
+  uint32_t t, i;           /* cavity tet and face index */
+  uint32_t out;            /* 4*u+j of the outside neighbour, or I2M_DT_NONE */
+  uint32_t v[4];           /* copy of tv[t] (p goes into slot i) */
+} i2m_dt_bface_t;
+
+/** Per-thread context: scratch space, locks held, free-slot pool, statistics. */
+typedef struct i2m_dt_ctx {
+  i2m_dt_t *dt;            /**< borrowed */
+  uint32_t owner;          /**< lock owner tag (>= 1) */
+  bool locking;            /**< take vertex locks (threaded runs) */
+  uint32_t conflict_owner; /**< after a rollback: the owner of the lock that failed */
+  /* scratch (owned, grown as needed: private to the context) */
+  uint32_t *cav; uint32_t ncav, cap_cav;          /* cavity / star tets */
+  i2m_dt_bface_t *bnd; uint32_t nbnd, cap_bnd;    /* cavity boundary faces */
+  uint32_t *newt; uint32_t nnew, cap_new;         /* tets created by the last operation */
+  uint32_t *held; uint32_t nheld, cap_held;       /* vertex locks held */
+  struct i2m_dt_edge *etab; uint32_t ecap, stamp; /* edge table (adjacency of new tets) */
+  uint32_t *pool; uint32_t npool, cap_pool;       /* this context's dead tet slots */
+  uint32_t fresh_next, fresh_end;                 /* reserved range of fresh slots */
+  uint32_t *vpool; uint32_t nvpool, cap_vpool;    /* dead vertex slots */
+  uint64_t rng;            /**< xorshift state for the walk */
+  struct i2m_dt_removal *rm; /**< owned: scratch for vertex removal, created on first use */
+  /* statistics */
+  int64_t n_insert, n_remove, n_rollback, n_created, n_killed, n_walk_steps;
+} i2m_dt_ctx_t;
+
+/** Creates a triangulation of the virtual box [lo, hi] (8 corners, ids 0..7) with room for
+ *  about @p nv_hint vertices.  @p pay_size bytes of payload per tet (0 for none). */
+i2m_err_t i2m_dt_create(const double lo[3], const double hi[3], uint32_t nv_hint, size_t pay_size,
+                        i2m_dt_t **out);
+void i2m_dt_destroy(i2m_dt_t **dt);
+
+/** Makes room for at least nv vertices and nt tets (all contexts must be idle). */
+i2m_err_t i2m_dt_reserve(i2m_dt_t *dt, uint32_t nv, uint32_t nt);
+
+/** Initialises a context for @p dt; owner >= 1 distinguishes threads. */
+i2m_err_t i2m_dt_ctx_init(i2m_dt_ctx_t *ctx, i2m_dt_t *dt, uint32_t owner, bool locking);
+void i2m_dt_ctx_free(i2m_dt_ctx_t *ctx);
+/** Returns the context's pooled dead slots to the shared free list (contexts idle). */
+void i2m_dt_ctx_flush(i2m_dt_ctx_t *ctx);
+
+/** Inserts point @p p (global id @p gid, kind @p kind) whose cavity contains tet @p seed.
+ *  @p seed_meta is meta[seed] when the seed was recorded (checked after locking; pass
+ *  I2M_DT_NONE to skip the check).  On I2M_DT_OK, *vout is the new vertex and ctx->newt
+ *  lists the new tets; the locks are still held until i2m_dt_unlock_all (so the caller can
+ *  classify the new tets safely).  On any other status nothing changed and no lock is held. */
+i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t gid, uint8_t kind,
+                              uint32_t seed, uint32_t seed_meta, uint32_t *vout);
+
+/** Finds a tet containing p by a visibility walk from @p start (sequential use). */
+uint32_t i2m_dt_locate(i2m_dt_ctx_t *ctx, const double p[3], uint32_t start);
+
+/** Inserts p after locating it from @p start (sequential use).  Duplicate points return
+ *  I2M_DT_DUPLICATE and change nothing. */
+i2m_dt_status_t i2m_dt_insert_walk(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t gid,
+                                   uint8_t kind, uint32_t start, uint32_t *vout);
+
+/** Removes vertex @p v (not a box corner): its star is re-triangulated with the same
+ *  symbolic perturbation, so the result is the Delaunay tetrahedralization without v.
+ *  On I2M_DT_OK ctx->newt lists the new tets and the locks are held (as for insert). */
+i2m_dt_status_t i2m_dt_remove(i2m_dt_ctx_t *ctx, uint32_t v);
+
+/** Releases every vertex lock held by the context. */
+void i2m_dt_unlock_all(i2m_dt_ctx_t *ctx);
+
+/** Bulk insertion of n points (xyz[3n]); point k gets global id gid0 + k.  Points are
+ *  inserted in BRIO order along a Hilbert curve (seeded by @p seed).  Duplicates are
+ *  skipped and counted in *nduplicates (may be NULL).  vid_out (may be NULL) receives each
+ *  point's vertex id (I2M_DT_NONE for a skipped duplicate). */
+i2m_err_t i2m_dt_insert_points(i2m_dt_t *dt, const double *xyz, int64_t n, i2m_gidx_t gid0,
+                               uint64_t seed, uint32_t *vid_out, int64_t *nduplicates);
+
+/** Validity check: positive orientation, symmetric adjacency with matching faces, empty
+ *  circumspheres (local Delaunay under the perturbation), vertex hints.  Returns I2M_OK or
+ *  I2M_ERR_INTERNAL with a message describing the first violation. */
+i2m_err_t i2m_dt_check(const i2m_dt_t *dt, bool check_delaunay);
+
+/** Order-independent checksum of the tetrahedralization (sum of hashes of each live tet's
+ *  sorted global ids), and the number of live tets. */
+uint64_t i2m_dt_checksum(const i2m_dt_t *dt, int64_t *ntets);
+
+/** Number of live tets (scans meta). */
+int64_t i2m_dt_count_tets(const i2m_dt_t *dt);
+
+/* ---- small inline accessors ---- */
+static inline i2m_gidx_t i2m_dt_gid(const i2m_dt_t *dt, uint32_t v)
+{
+  union { double d; int64_t i; } u;
+  u.d = dt->xyzw[4 * (size_t)v + 3];
+  return u.i;
+}
+static inline const double *i2m_dt_xyz(const i2m_dt_t *dt, uint32_t v) { return dt->xyzw + 4 * (size_t)v; }
+static inline uint32_t i2m_dt_meta(const i2m_dt_t *dt, uint32_t t)
+{
+  return atomic_load_explicit(&dt->meta[t], memory_order_relaxed);
+}
+static inline bool i2m_dt_alive(const i2m_dt_t *dt, uint32_t t) { return !(i2m_dt_meta(dt, t) & I2M_TM_DEAD); }
+static inline uint32_t i2m_dt_nverts_slots(const i2m_dt_t *dt)
+{
+  return atomic_load_explicit(&dt->nv_atomic, memory_order_relaxed);
+}
+static inline uint32_t i2m_dt_ntets_slots(const i2m_dt_t *dt)
+{
+  return atomic_load_explicit(&dt->nt_atomic, memory_order_relaxed);
+}
+static inline void *i2m_dt_payload(const i2m_dt_t *dt, uint32_t t) { return dt->tpay + dt->pay_size * t; }
+
+#ifdef __cplusplus
+}
+#endif
+#endif

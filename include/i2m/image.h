@@ -1,0 +1,109 @@
+/* i2m image layer (layer 2): one in-memory label image with its geometry, the readers for
+ * NRRD, NIfTI-1, MetaImage and INR, and the label oracle.
+ *
+ * Frames.  World coordinates follow the LPS convention of ITK and DICOM (x to the patient's
+ * left, y posterior, z superior); NIfTI's RAS is converted on reading.  A voxel index
+ * (i,j,k) has world position  origin + dir * diag(spacing) * (i,j,k)  (voxel centres).
+ * The mesher works in the "grid frame": g = diag(spacing) * (i,j,k), an axis-aligned frame
+ * in mm with voxel (0,0,0)'s centre at the origin; i2m_image_grid_to_world() maps a grid
+ * point to the world (a rigid motion when dir is orthonormal, which the readers ensure). */
+#ifndef I2M_IMAGE_H
+#define I2M_IMAGE_H
+
+#include "i2m/base.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Scalar type of the voxels in the file. */
+typedef enum {
+  I2M_SCALAR_INT8, I2M_SCALAR_UINT8, I2M_SCALAR_INT16, I2M_SCALAR_UINT16,
+  I2M_SCALAR_INT32, I2M_SCALAR_UINT32, I2M_SCALAR_INT64, I2M_SCALAR_UINT64,
+  I2M_SCALAR_FLOAT32, I2M_SCALAR_FLOAT64
+} i2m_scalar_t;
+
+/** Largest number of distinct label values in one image (label indices are uint16). */
+#define I2M_MAX_LABELS 65535
+
+/** A label image.  Voxels hold label *indices* into label_value[]; index 0 is always the
+ *  background value 0 (its count may be 0).  Other indices are in increasing value order. */
+typedef struct i2m_image {
+  int64_t n[3];            /**< voxels along i, j, k (each >= 1) */
+  double spacing[3];       /**< voxel size along i, j, k in mm (> 0) */
+  double origin[3];        /**< world (LPS) position of the centre of voxel (0,0,0) */
+  double dir[3][3];        /**< dir[r][c]: world component r of index axis c; orthonormal */
+  i2m_scalar_t file_type;  /**< voxel type found in the file */
+  uint16_t *vox;           /**< owned: [n2][n1][n0] label indices, i fastest */
+  int nlabels;             /**< number of label indices (>= 1, background included) */
+  int64_t *label_value;    /**< owned: [nlabels] original label values; [0] = 0 */
+  int64_t *label_count;    /**< owned: [nlabels] voxel counts */
+  char *path;              /**< owned: file it came from ("" for synthetic images) */
+} i2m_image_t;
+
+/** Reads a label image; the format is chosen by content and extension (.nrrd, .nhdr, .nii,
+ *  .nii.gz, .mha, .mhd, .inr, .inr.gz).  On error *out is NULL and the message names the file
+ *  and the problem.  Not collective. */
+i2m_err_t i2m_image_read(const char *path, i2m_image_t **out);
+
+/** File formats the readers know. */
+typedef enum {
+  I2M_IMAGE_FORMAT_UNKNOWN = 0,
+  I2M_IMAGE_FORMAT_NRRD,      /**< .nrrd, .nhdr + data file */
+  I2M_IMAGE_FORMAT_NIFTI,     /**< NIfTI-1: .nii, .nii.gz, .hdr + .img */
+  I2M_IMAGE_FORMAT_METAIMAGE, /**< .mha, .mhd + data file */
+  I2M_IMAGE_FORMAT_INR        /**< Inrimage: .inr, .inr.gz */
+} i2m_image_format_t;
+
+/** Like i2m_image_read(), and also reports the format found in *format (may be NULL; set
+ *  even when reading fails after the format was recognised).  Not collective; thread safe
+ *  (no shared state; the error message is per thread). */
+i2m_err_t i2m_image_read_format(const char *path, i2m_image_t **out, i2m_image_format_t *format);
+
+/** Short lower-case name of a format: "nrrd", "nifti", "metaimage", "inr" or "unknown". */
+const char *i2m_image_format_name(i2m_image_format_t format);
+
+/** Builds an image from raw label values (int64, i fastest) with the given geometry
+ *  (dir may be NULL for identity).  The values are copied. */
+i2m_err_t i2m_image_create_from_values(const int64_t n[3], const double spacing[3],
+                                       const double origin[3], const double dir[3][3],
+                                       const int64_t *values, i2m_image_t **out);
+
+/** Frees an image; accepts NULL; sets *img = NULL. */
+void i2m_image_destroy(i2m_image_t **img);
+
+/** Name of a scalar type ("uint8", "int16", ...). */
+const char *i2m_scalar_name(i2m_scalar_t t);
+
+/** Label index of a grid-frame point: the voxel that contains it, 0 outside the image. */
+static inline int i2m_image_label_at(const i2m_image_t *img, const double g[3])
+{
+  int64_t idx[3];
+  for (int a = 0; a < 3; a++) {
+    double u = g[a] / img->spacing[a] + 0.5;
+    if (!(u >= 0.0)) return 0; /* also rejects NaN */
+    idx[a] = (int64_t)u;
+    if (idx[a] >= img->n[a]) return 0;
+  }
+  return img->vox[(idx[2] * img->n[1] + idx[1]) * img->n[0] + idx[0]];
+}
+
+/** Label index of voxel (i,j,k); 0 outside the image. */
+static inline int i2m_image_label_voxel(const i2m_image_t *img, int64_t i, int64_t j, int64_t k)
+{
+  if (i < 0 || j < 0 || k < 0 || i >= img->n[0] || j >= img->n[1] || k >= img->n[2]) return 0;
+  return img->vox[(k * img->n[1] + j) * img->n[0] + i];
+}
+
+/** Grid frame -> world (LPS). */
+void i2m_image_grid_to_world(const i2m_image_t *img, const double g[3], double w[3]);
+/** World (LPS) -> grid frame. */
+void i2m_image_world_to_grid(const i2m_image_t *img, const double w[3], double g[3]);
+/** Determinant sign of dir (+1 or -1): -1 means the grid->world map flips orientation, so
+ *  writers swap two vertices of every tetrahedron to keep positive volumes. */
+int i2m_image_handedness(const i2m_image_t *img);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

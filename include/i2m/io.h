@@ -1,0 +1,32 @@
+/* i2m io layer (layer 7): mesh writers.  The format follows the output file's extension:
+ *   .vtu   VTK XML unstructured grid, binary appended data, cell data "material"
+ *   .mesh  Medit ASCII: vertices, tetrahedra (ref = label value), interface triangles
+ *          (ref = interface number; a comment block maps numbers to label pairs)
+ *   .msh   Gmsh 4.1 (binary; ASCII when the environment variable I2M_MSH_ASCII=1): one
+ *          physical volume per label ("label_<v>", tag v > 0), one physical surface per
+ *          interface pair ("interface_<a>_<b>", tags after the largest label).
+ * Output is buffered (large fwrite chunks) and every write is checked; a failed write
+ * removes the partial file.  bin/i2m-check reads all three back (tools/check). */
+#ifndef I2M_IO_H
+#define I2M_IO_H
+
+#include "i2m/tetmesh.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Mesh file formats. */
+typedef enum { I2M_FORMAT_UNKNOWN = 0, I2M_FORMAT_VTU, I2M_FORMAT_MEDIT, I2M_FORMAT_GMSH } i2m_format_t;
+
+/** Format for a file name (by extension, case-insensitive); I2M_FORMAT_UNKNOWN if none. */
+i2m_format_t i2m_format_from_path(const char *path);
+
+/** Writes @p m to @p path in the format given by its extension.  Not collective.
+ *  On error the message names the file and the problem (unknown extension, disk full). */
+i2m_err_t i2m_mesh_write(const i2m_tetmesh_t *m, const char *path);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,102 @@
+/* i2m refine layer (layer 4): Delaunay refinement of a label image with the PI2M/PODM rules
+ * (ARCHITECTURE §4), starting from the virtual box:
+ *
+ *   R1  ball of t meets an interface          -> closest interface point z (surface vertex),
+ *                                                unless a surface vertex lies within delta of z
+ *   R2  ball meets an interface, r >= 2 delta  -> circumcentre
+ *   R3  t inside, r / shortest edge > ratio    -> circumcentre
+ *   R4  t inside, r > size(circumcentre)       -> circumcentre
+ *   R5  restricted facet, planar angle < 30°   -> surface centre (surface vertex)
+ *   R6  restricted facet, a non-surface vertex -> surface centre (surface vertex)
+ *   R7  after a surface vertex z               -> remove the free vertices within 2 delta of z
+ *
+ * Surface rules first, then R2, then the volume rules.  The mesher works in the image's grid
+ * frame (image.h); extraction maps to world coordinates.  All rule evaluation goes through
+ * a per-thread worker, so the threads layer runs the same code on many threads. */
+#ifndef I2M_REFINE_H
+#define I2M_REFINE_H
+
+#include "i2m/dt.h"
+#include "i2m/edt.h"
+#include "i2m/image.h"
+#include "i2m/tetmesh.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** A critical region: a world-coordinate box with its own size and ratio bounds. */
+typedef struct {
+  double lo[3], hi[3]; /**< world (LPS) corners, lo < hi */
+  double size;         /**< max circumradius inside (mm) */
+  double ratio;        /**< radius-edge bound inside */
+} i2m_region_t;
+
+/** A size bound for the tets of one label. */
+typedef struct {
+  int64_t value; /**< original label value */
+  double size;   /**< max circumradius (mm) */
+} i2m_label_size_t;
+
+/** Refinement parameters (lengths in mm). */
+typedef struct {
+  double delta;       /**< surface sampling distance; <= 0: default from the spacing */
+  double ratio;       /**< radius-edge bound (>= 2) */
+  double facet_angle; /**< minimum planar angle of interface triangles, degrees (<= 30) */
+  double size;        /**< max circumradius everywhere (INFINITY: none) */
+  int nlabel_sizes;
+  const i2m_label_size_t *label_sizes; /**< borrowed */
+  int nregions;
+  const i2m_region_t *regions;         /**< borrowed */
+  uint64_t seed;
+} i2m_refine_params_t;
+
+/** Default parameters (delta chosen by i2m_refine_default_delta at setup). */
+void i2m_refine_params_default(i2m_refine_params_t *p);
+
+/** The default delta for an image: 2 x the largest voxel spacing.  Interfaces are voxel
+ *  staircases whose steps are one voxel high; sampling them every two voxels follows the
+ *  tissue boundaries while smoothing the staircase. */
+double i2m_refine_default_delta(const i2m_image_t *img);
+
+/** Checks parameters against the image; one clear message on error. */
+i2m_err_t i2m_refine_params_check(const i2m_refine_params_t *p, const i2m_image_t *img);
+
+/** Counters of what refinement did. */
+typedef struct {
+  int64_t rule[8];        /**< insertions per rule (index 1..6), removals at [7] */
+  int64_t insertions, removals, rollbacks;
+  int64_t failed;         /**< bad elements dropped because their point could not go in */
+  int64_t duplicates;     /**< points that coincided with a vertex */
+  int64_t junction_skips; /**< R5 skipped near junctions of three or more labels */
+  int64_t tets_created;
+  double seconds;
+} i2m_refine_stats_t;
+
+typedef struct i2m_refine i2m_refine_t;
+typedef struct i2m_refine_worker i2m_refine_worker_t;
+
+/** Sets up refinement of @p img: the virtual box triangulation with every tet classified.
+ *  @p img and @p edt are borrowed and must outlive the object. */
+i2m_err_t i2m_refine_create(const i2m_image_t *img, const i2m_edt_t *edt, const i2m_refine_params_t *params,
+                            i2m_refine_t **out);
+void i2m_refine_destroy(i2m_refine_t **r);
+
+/** Runs refinement to completion on the calling thread. */
+i2m_err_t i2m_refine_run(i2m_refine_t *r);
+
+/** The triangulation being refined (borrowed). */
+i2m_dt_t *i2m_refine_dt(i2m_refine_t *r);
+/** The parameters in use (delta resolved). */
+const i2m_refine_params_t *i2m_refine_params(const i2m_refine_t *r);
+/** Statistics summed over the workers. */
+void i2m_refine_get_stats(const i2m_refine_t *r, i2m_refine_stats_t *s);
+
+/** The labelled mesh: tets whose circumcentre is inside, with their label value, and the
+ *  interface triangles, in world coordinates, compacted.  Not collective. */
+i2m_err_t i2m_refine_extract(const i2m_refine_t *r, i2m_tetmesh_t **out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

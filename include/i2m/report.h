@@ -1,0 +1,42 @@
+/* i2m io layer (layer 7): the run report, printed as a summary and written as JSON. */
+#ifndef I2M_REPORT_H
+#define I2M_REPORT_H
+
+#include <stdio.h>
+
+#include "i2m/quality.h"
+#include "i2m/refine.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Phases timed by the driver, in the order they run. */
+enum { I2M_PHASE_READ, I2M_PHASE_EDT, I2M_PHASE_REFINE, I2M_PHASE_EXTRACT, I2M_PHASE_WRITE, I2M_NPHASES };
+
+/** Everything a run reports (all borrowed). */
+typedef struct {
+  const char *input, *output;
+  const i2m_image_t *img;
+  const i2m_refine_params_t *params; /**< delta resolved */
+  i2m_refine_stats_t stats;
+  int64_t nv, nt, ntri;              /**< output mesh */
+  int64_t working_tets;              /**< tets of the triangulation at the end (all labels) */
+  double phase_seconds[I2M_NPHASES];
+  double total_seconds;
+  size_t peak_rss;                   /**< bytes */
+  int threads, ranks;
+  const i2m_quality_t *quality;
+} i2m_report_t;
+
+/** Name of a phase ("read", "distance_transform", ...). */
+const char *i2m_phase_name(int phase);
+/** A human-readable summary. */
+void i2m_report_print(FILE *f, const i2m_report_t *r);
+/** The JSON report; the message names the file on error. */
+i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,33 @@
+/* i2m labelled tetrahedral mesh (layer 4, refine): the product the mesher hands to the
+ * writers and reports.  A plain container: world coordinates, tetrahedra with the original
+ * label value of their tissue, and the interface triangles between different labels. */
+#ifndef I2M_TETMESH_H
+#define I2M_TETMESH_H
+
+#include "i2m/base.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct i2m_tetmesh {
+  int64_t nv;          /**< number of vertices */
+  double *xyz;         /**< owned: [nv][3] world coordinates (mm) */
+  int64_t nt;          /**< number of tetrahedra */
+  int32_t *tet;        /**< owned: [nt][4] vertex indices (0-based), positive orientation */
+  int64_t *tet_label;  /**< owned: [nt] original label value (the material) */
+  int64_t ntri;        /**< number of interface triangles */
+  int32_t *tri;        /**< owned: [ntri][3] vertex indices, oriented so that the normal
+                            (right-hand rule) points from tri_label[2i] to tri_label[2i+1] */
+  int64_t *tri_label;  /**< owned: [ntri][2] label values (a < b); background is 0 */
+} i2m_tetmesh_t;
+
+/** Allocates a mesh with room for the given counts (arrays uninitialised, counts set). */
+i2m_err_t i2m_tetmesh_create(int64_t nv, int64_t nt, int64_t ntri, i2m_tetmesh_t **out);
+/** Frees a mesh; accepts NULL; sets *m = NULL. */
+void i2m_tetmesh_destroy(i2m_tetmesh_t **m);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

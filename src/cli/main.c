@@ -1,0 +1,119 @@
+/* cli layer: bin/i2m, the image-to-mesh driver: read, distance transform, refinement,
+ * extraction, write, report.  The only place that calls exit codes. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "i2m/edt.h"
+#include "i2m/io.h"
+#include "i2m/quality.h"
+#include "i2m/refine.h"
+#include "i2m/report.h"
+#include "options.h"
+
+typedef struct {
+  cli_options_t opt;
+  i2m_image_t *img;
+  i2m_edt_t *edt;
+  i2m_refine_t *ref;
+  i2m_tetmesh_t *mesh;
+  i2m_quality_t quality;
+  i2m_report_t rep;
+  double t0, tphase;
+} run_t;
+
+static void phase_begin(run_t *r, const char *what)
+{
+  r->tphase = i2m_wtime();
+  i2m_info("i2m: %s", what);
+}
+static void phase_end(run_t *r, int phase) { r->rep.phase_seconds[phase] = i2m_wtime() - r->tphase; }
+
+static i2m_err_t run_mesher(run_t *r)
+{
+  cli_options_t *o = &r->opt;
+  phase_begin(r, "reading the image");
+  I2M_CALL(i2m_image_read(o->input, &r->img));
+  I2M_CALL(i2m_refine_params_check(&o->params, r->img));
+  phase_end(r, I2M_PHASE_READ);
+
+  phase_begin(r, "distance transform");
+  I2M_CALL(i2m_edt_create(r->img, &r->edt));
+  phase_end(r, I2M_PHASE_EDT);
+
+  phase_begin(r, "refinement");
+  I2M_CALL(i2m_refine_create(r->img, r->edt, &o->params, &r->ref));
+  I2M_CALL(i2m_refine_run(r->ref));
+  if (o->check) I2M_CALL(i2m_dt_check(i2m_refine_dt(r->ref), true));
+  phase_end(r, I2M_PHASE_REFINE);
+
+  phase_begin(r, "extraction");
+  I2M_CALL(i2m_refine_extract(r->ref, &r->mesh));
+  phase_end(r, I2M_PHASE_EXTRACT);
+  I2M_CHECK(r->mesh->nt > 0, I2M_ERR_INPUT,
+            "%s: the mesh is empty: the labelled region is smaller than what delta = %g mm can resolve; try a smaller --delta",
+            o->input, i2m_refine_params(r->ref)->delta);
+
+  phase_begin(r, "writing the mesh");
+  I2M_CALL(i2m_mesh_write(r->mesh, o->output));
+  phase_end(r, I2M_PHASE_WRITE);
+  return I2M_OK;
+}
+
+static i2m_err_t report(run_t *r)
+{
+  i2m_report_t *rep = &r->rep;
+  const i2m_refine_params_t *p = i2m_refine_params(r->ref);
+  I2M_CALL(i2m_quality_compute(r->mesh, r->img, p->ratio, p->facet_angle, &r->quality));
+  rep->input = r->opt.input;
+  rep->output = r->opt.output;
+  rep->img = r->img;
+  rep->params = p;
+  i2m_refine_get_stats(r->ref, &rep->stats);
+  rep->nv = r->mesh->nv;
+  rep->nt = r->mesh->nt;
+  rep->ntri = r->mesh->ntri;
+  rep->working_tets = i2m_dt_count_tets(i2m_refine_dt(r->ref));
+  rep->total_seconds = i2m_wtime() - r->t0;
+  rep->peak_rss = i2m_peak_rss_bytes();
+  rep->threads = 1;
+  rep->ranks = 1;
+  rep->quality = &r->quality;
+  if (!r->opt.quiet) i2m_report_print(stdout, rep);
+  if (r->opt.report) I2M_CALL(i2m_report_write_json(r->opt.report, rep));
+  return I2M_OK;
+}
+
+static void run_free(run_t *r)
+{
+  i2m_quality_free(&r->quality);
+  i2m_tetmesh_destroy(&r->mesh);
+  i2m_refine_destroy(&r->ref);
+  i2m_edt_destroy(&r->edt);
+  i2m_image_destroy(&r->img);
+}
+
+int main(int argc, char **argv)
+{
+  run_t r;
+  memset(&r, 0, sizeof r);
+  r.t0 = i2m_wtime();
+  if (cli_parse(argc, argv, &r.opt) != I2M_OK) {
+    fprintf(stderr, "i2m: %s\n", i2m_error_message());
+    return 2;
+  }
+  if (r.opt.help) {
+    cli_usage(stdout);
+    return 0;
+  }
+  if (r.opt.version) {
+    printf("i2m 0.1\n");
+    return 0;
+  }
+  i2m_log_set_level(r.opt.quiet ? I2M_LOG_QUIET : r.opt.verbose ? I2M_LOG_DEBUG : I2M_LOG_INFO);
+  i2m_err_t err = run_mesher(&r);
+  if (err == I2M_OK) err = report(&r);
+  if (err != I2M_OK) fprintf(stderr, "i2m: %s\n", i2m_error_message());
+  run_free(&r);
+  return err == I2M_OK ? 0 : 1;
+}

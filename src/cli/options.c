@@ -1,0 +1,161 @@
+/* cli layer: parsing and validation of bin/i2m's options (one clear message per mistake). */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "i2m/io.h"
+#include "options.h"
+
+void cli_usage(FILE *f)
+{
+  fprintf(f,
+          "usage: i2m INPUT -o OUTPUT [options]\n"
+          "Meshes a segmented 3D image (every voxel a tissue label) into a conforming tetrahedral mesh.\n"
+          "  INPUT                 .nrrd .nhdr .nii .nii.gz .mha .mhd .inr .inr.gz\n"
+          "  -o, --output FILE     .vtu (VTK), .mesh (Medit) or .msh (Gmsh 4.1)\n"
+          "  --delta D             surface sampling / fidelity distance in mm (default 2 x the largest spacing)\n"
+          "  --ratio R             radius-edge bound, >= 2 (default 2)\n"
+          "  --facet-angle A       minimum planar angle of interface triangles, <= 30 degrees (default 30)\n"
+          "  --size S              maximum circumradius in mm (default none)\n"
+          "  --size-label L=S      maximum circumradius S for the tets of label L (repeatable)\n"
+          "  --region X0,Y0,Z0,X1,Y1,Z1:S[:R]\n"
+          "                        a world box (mm) whose tets get size S and ratio R (repeatable)\n"
+          "  --threads T           worker threads (default: the cores available)\n"
+          "  --report FILE.json    write the run report as JSON\n"
+          "  --seed N              random seed (default 1)\n"
+          "  --check               check the triangulation's validity before writing (slow)\n"
+          "  --quiet               no progress or summary (errors only); --verbose: more detail\n"
+          "  -h, --help            this help\n");
+}
+
+static i2m_err_t parse_double(const char *opt, const char *s, double *x)
+{
+  char *end = NULL;
+  errno = 0;
+  double v = s ? strtod(s, &end) : NAN;
+  I2M_CHECK(s && end != s && *end == '\0' && errno == 0 && isfinite(v), I2M_ERR_ARG,
+            "%s expects a number, got '%s'", opt, s ? s : "(nothing)");
+  *x = v;
+  return I2M_OK;
+}
+
+static i2m_err_t parse_int(const char *opt, const char *s, long long *x)
+{
+  char *end = NULL;
+  errno = 0;
+  long long v = s ? strtoll(s, &end, 10) : 0;
+  I2M_CHECK(s && end != s && *end == '\0' && errno == 0, I2M_ERR_ARG, "%s expects an integer, got '%s'", opt,
+            s ? s : "(nothing)");
+  *x = v;
+  return I2M_OK;
+}
+
+static i2m_err_t parse_label_size(const char *s, cli_options_t *o, int *n)
+{
+  I2M_CHECK(*n < I2M_MAX_LIST, I2M_ERR_ARG, "--size-label: at most %d are supported", I2M_MAX_LIST);
+  const char *eq = s ? strchr(s, '=') : NULL;
+  I2M_CHECK(eq, I2M_ERR_ARG, "--size-label expects LABEL=SIZE, got '%s'", s ? s : "(nothing)");
+  char label[64];
+  size_t len = (size_t)(eq - s);
+  I2M_CHECK(len > 0 && len < sizeof label, I2M_ERR_ARG, "--size-label expects LABEL=SIZE, got '%s'", s);
+  memcpy(label, s, len);
+  label[len] = '\0';
+  long long v = 0;
+  I2M_CALL(parse_int("--size-label (label)", label, &v));
+  o->label_sizes[*n].value = v;
+  I2M_CALL(parse_double("--size-label (size)", eq + 1, &o->label_sizes[*n].size));
+  I2M_CHECK(o->label_sizes[*n].size > 0, I2M_ERR_ARG, "--size-label %s: the size must be positive", s);
+  (*n)++;
+  return I2M_OK;
+}
+
+static i2m_err_t parse_region(const char *s, cli_options_t *o, int *n)
+{
+  I2M_CHECK(*n < I2M_MAX_LIST, I2M_ERR_ARG, "--region: at most %d are supported", I2M_MAX_LIST);
+  I2M_CHECK(s, I2M_ERR_ARG, "--region expects X0,Y0,Z0,X1,Y1,Z1:SIZE[:RATIO]");
+  i2m_region_t *g = &o->regions[*n];
+  double c[6];
+  char tail[64] = "";
+  int used = 0;
+  int got = sscanf(s, "%lf,%lf,%lf,%lf,%lf,%lf:%n", &c[0], &c[1], &c[2], &c[3], &c[4], &c[5], &used);
+  I2M_CHECK(got == 6 && used > 0, I2M_ERR_ARG, "--region expects X0,Y0,Z0,X1,Y1,Z1:SIZE[:RATIO], got '%s'", s);
+  snprintf(tail, sizeof tail, "%s", s + used);
+  char *colon = strchr(tail, ':');
+  g->ratio = o->params.ratio;
+  if (colon) {
+    *colon = '\0';
+    I2M_CALL(parse_double("--region (ratio)", colon + 1, &g->ratio));
+  }
+  I2M_CALL(parse_double("--region (size)", tail, &g->size));
+  for (int a = 0; a < 3; a++) {
+    g->lo[a] = fmin(c[a], c[a + 3]);
+    g->hi[a] = fmax(c[a], c[a + 3]);
+    I2M_CHECK(g->lo[a] < g->hi[a], I2M_ERR_ARG, "--region %s: the box is empty along axis %d", s, a);
+  }
+  I2M_CHECK(g->size > 0, I2M_ERR_ARG, "--region %s: the size must be positive", s);
+  (*n)++;
+  return I2M_OK;
+}
+
+/* Options that take a value. */
+static i2m_err_t parse_valued(const char *opt, const char *val, cli_options_t *o, int *nls, int *nrg)
+{
+  i2m_refine_params_t *p = &o->params;
+  long long iv = 0;
+  if (!strcmp(opt, "-o") || !strcmp(opt, "--output")) o->output = val;
+  else if (!strcmp(opt, "--report")) o->report = val;
+  else if (!strcmp(opt, "--delta")) {
+    I2M_CALL(parse_double(opt, val, &p->delta));
+    I2M_CHECK(p->delta > 0, I2M_ERR_ARG, "--delta must be a positive length in mm (got %s)", val);
+  } else if (!strcmp(opt, "--ratio")) I2M_CALL(parse_double(opt, val, &p->ratio));
+  else if (!strcmp(opt, "--facet-angle")) I2M_CALL(parse_double(opt, val, &p->facet_angle));
+  else if (!strcmp(opt, "--size")) {
+    I2M_CALL(parse_double(opt, val, &p->size));
+    I2M_CHECK(p->size > 0, I2M_ERR_ARG, "--size must be a positive length in mm (got %s)", val);
+  } else if (!strcmp(opt, "--size-label")) I2M_CALL(parse_label_size(val, o, nls));
+  else if (!strcmp(opt, "--region")) I2M_CALL(parse_region(val, o, nrg));
+  else if (!strcmp(opt, "--seed")) {
+    I2M_CALL(parse_int(opt, val, &iv));
+    p->seed = (uint64_t)iv;
+  } else if (!strcmp(opt, "--threads")) {
+    I2M_CALL(parse_int(opt, val, &iv));
+    I2M_CHECK(iv >= 1 && iv <= 4096, I2M_ERR_ARG, "--threads must be between 1 and 4096 (got %s)", val);
+    o->threads = (int)iv;
+  } else return I2M_ERROR(I2M_ERR_ARG, "unknown option '%s' (see i2m --help)", opt);
+  return I2M_OK;
+}
+
+i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o)
+{
+  memset(o, 0, sizeof *o);
+  i2m_refine_params_default(&o->params);
+  int nls = 0, nrg = 0;
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i];
+    if (!strcmp(a, "-h") || !strcmp(a, "--help")) o->help = 1;
+    else if (!strcmp(a, "--version")) o->version = 1;
+    else if (!strcmp(a, "--quiet") || !strcmp(a, "-q")) o->quiet = 1;
+    else if (!strcmp(a, "--verbose") || !strcmp(a, "-v")) o->verbose = 1;
+    else if (!strcmp(a, "--check")) o->check = 1;
+    else if (a[0] == '-' && a[1] != '\0') {
+      I2M_CHECK(i + 1 < argc, I2M_ERR_ARG, "option %s needs a value (see i2m --help)", a);
+      I2M_CALL(parse_valued(a, argv[i + 1], o, &nls, &nrg));
+      i++;
+    } else {
+      I2M_CHECK(!o->input, I2M_ERR_ARG, "more than one input image given ('%s' and '%s')", o->input, a);
+      o->input = a;
+    }
+  }
+  o->params.nlabel_sizes = nls;
+  o->params.label_sizes = o->label_sizes;
+  o->params.nregions = nrg;
+  o->params.regions = o->regions;
+  if (o->help || o->version) return I2M_OK;
+  I2M_CHECK(o->input, I2M_ERR_ARG, "no input image given (usage: i2m INPUT -o OUTPUT; see i2m --help)");
+  I2M_CHECK(o->output, I2M_ERR_ARG, "no output file given: add -o OUTPUT.vtu, .mesh or .msh");
+  I2M_CHECK(i2m_format_from_path(o->output) != I2M_FORMAT_UNKNOWN, I2M_ERR_ARG,
+            "%s: unknown output format; use a .vtu, .mesh or .msh file name", o->output);
+  return I2M_OK;
+}

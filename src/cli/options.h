@@ -1,0 +1,22 @@
+/* cli layer: command-line options of bin/i2m. */
+#ifndef I2M_CLI_OPTIONS_H
+#define I2M_CLI_OPTIONS_H
+
+#include "i2m/refine.h"
+
+#define I2M_MAX_LIST 64
+
+typedef struct {
+  const char *input, *output, *report;
+  i2m_refine_params_t params;
+  i2m_label_size_t label_sizes[I2M_MAX_LIST];
+  i2m_region_t regions[I2M_MAX_LIST];
+  int quiet, verbose, check, threads;
+  int help, version;
+} cli_options_t;
+
+/** Parses argv; on error returns I2M_ERR_ARG with a message naming the option. */
+i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o);
+void cli_usage(FILE *f);
+
+#endif

@@ -1,0 +1,299 @@
+/* Delaunay layer: creation of the virtual box, capacity, per-thread contexts, slot pools and
+ * the edge table that links the new tets of a cavity. */
+#include "dt_impl.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+#define GROW(n) ((n) + (n) / 2 + 64)
+
+/* ---- capacity ---- */
+
+static i2m_err_t grow_atomic_u32(_Atomic uint32_t **a, uint32_t old_cap, uint32_t cap, uint32_t init)
+{
+  I2M_CALL(i2m_realloc(cap, sizeof(uint32_t), a));
+  for (uint32_t i = old_cap; i < cap; i++) atomic_init(&(*a)[i], init);
+  return I2M_OK;
+}
+
+i2m_err_t i2m_dt_reserve(i2m_dt_t *dt, uint32_t nv, uint32_t nt)
+{
+  I2M_CHECK(nt <= (UINT32_MAX >> 2) - 1 && nv < UINT32_MAX - 1, I2M_ERR_MEMORY,
+            "a process can hold at most 2^30 tetrahedra (asked for %u); use more MPI ranks", nt);
+  if (nv > dt->cap_v) {
+    I2M_CALL(i2m_realloc((size_t)nv * 4, sizeof(double), &dt->xyzw));
+    I2M_CALL(i2m_realloc(nv, sizeof(uint8_t), &dt->vkind));
+    I2M_CALL(i2m_realloc(nv, sizeof(uint32_t), &dt->vtet));
+    I2M_CALL(grow_atomic_u32(&dt->vlock, dt->cap_v, nv, 0));
+    dt->cap_v = nv;
+  }
+  if (nt > dt->cap_t) {
+    I2M_CALL(i2m_realloc((size_t)nt * 4, sizeof(uint32_t), &dt->tv));
+    I2M_CALL(i2m_realloc((size_t)nt * 4, sizeof(uint32_t), &dt->tn));
+    I2M_CALL(grow_atomic_u32(&dt->meta, dt->cap_t, nt, I2M_TM_DEAD));
+    if (dt->pay_size) I2M_CALL(i2m_realloc(nt, dt->pay_size, &dt->tpay));
+    dt->cap_t = nt;
+  }
+  return I2M_OK;
+}
+
+/* ---- the virtual box ---- */
+
+/* The Delaunay tetrahedralization of the 8 (cospherical) box corners under the symbolic
+ * perturbation: exactly the positive tets whose perturbed circumsphere holds no other
+ * corner.  Then adjacency by face matching. */
+static i2m_err_t box_triangulate(i2m_dt_t *dt)
+{
+  uint32_t nt = 0;
+  for (uint32_t a = 0; a < 8; a++)
+    for (uint32_t b = a + 1; b < 8; b++)
+      for (uint32_t c = b + 1; c < 8; c++)
+        for (uint32_t d = c + 1; d < 8; d++) {
+          uint32_t v[4] = {a, b, c, d};
+          int o = i2m_orient3d(i2m_dt_xyz(dt, a), i2m_dt_xyz(dt, b), i2m_dt_xyz(dt, c), i2m_dt_xyz(dt, d));
+          if (o == 0) continue;
+          if (o < 0) { v[0] = b; v[1] = a; }
+          bool empty = true;
+          for (uint32_t e = 0; e < 8 && empty; e++)
+            if (e != a && e != b && e != c && e != d && tet_insphere(dt, v, i2m_dt_xyz(dt, e), (i2m_gidx_t)e) > 0)
+              empty = false;
+          if (!empty) continue;
+          I2M_CHECK(nt < 6, I2M_ERR_INTERNAL, "virtual box: more than 6 Delaunay tets");
+          memcpy(dt->tv + 4 * nt, v, sizeof v);
+          meta_store(dt, nt, 0);
+          nt++;
+        }
+  I2M_CHECK(nt >= 5, I2M_ERR_INTERNAL, "virtual box: only %u Delaunay tets", nt);
+  for (uint32_t t = 0; t < nt; t++)
+    for (int i = 0; i < 4; i++) dt->tn[4 * t + i] = I2M_DT_NONE;
+  for (uint32_t t = 0; t < nt; t++)
+    for (uint32_t i = 0; i < 4; i++)
+      for (uint32_t u = t + 1; u < nt; u++)
+        for (uint32_t j = 0; j < 4; j++) {
+          int shared = 0;
+          for (int x = 0; x < 4; x++)
+            for (int y = 0; y < 4; y++)
+              if (x != (int)i && y != (int)j && dt->tv[4 * t + x] == dt->tv[4 * u + y]) shared++;
+          if (shared == 3) {
+            dt->tn[4 * t + i] = 4 * u + j;
+            dt->tn[4 * u + j] = 4 * t + i;
+          }
+        }
+  atomic_store(&dt->nt_atomic, nt);
+  for (uint32_t t = 0; t < nt; t++)
+    for (int i = 0; i < 4; i++) dt->vtet[dt->tv[4 * t + i]] = t;
+  return I2M_OK;
+}
+
+i2m_err_t i2m_dt_create(const double lo[3], const double hi[3], uint32_t nv_hint, size_t pay_size,
+                        i2m_dt_t **out)
+{
+  i2m_dt_t *dt = NULL;
+  i2m_err_t err = I2M_OK;
+  *out = NULL;
+  for (int a = 0; a < 3; a++)
+    I2M_CHECK(isfinite(lo[a]) && isfinite(hi[a]) && lo[a] < hi[a], I2M_ERR_INTERNAL, "empty virtual box");
+  I2M_CALL(i2m_calloc(1, sizeof *dt, &dt));
+  dt->pay_size = pay_size;
+  atomic_init(&dt->nv_atomic, 0);
+  atomic_init(&dt->nt_atomic, 0);
+  uint64_t nt_hint = 7 * (uint64_t)nv_hint + 64;
+  if (nt_hint > (UINT32_MAX >> 2) - 1) nt_hint = (UINT32_MAX >> 2) - 1;
+  I2M_CALL_GOTO(err, fail, i2m_dt_reserve(dt, nv_hint + 16, (uint32_t)nt_hint));
+  for (int a = 0; a < 3; a++) {
+    dt->box_lo[a] = lo[a];
+    dt->box_hi[a] = hi[a];
+  }
+  for (uint32_t k = 0; k < 8; k++) {
+    double *x = dt->xyzw + 4 * k;
+    x[0] = (k & 1) ? hi[0] : lo[0];
+    x[1] = (k & 2) ? hi[1] : lo[1];
+    x[2] = (k & 4) ? hi[2] : lo[2];
+    set_gid(dt, k, (i2m_gidx_t)k);
+    dt->vkind[k] = I2M_VK_BOX;
+  }
+  atomic_store(&dt->nv_atomic, 8);
+  I2M_CALL_GOTO(err, fail, box_triangulate(dt));
+  *out = dt;
+  return I2M_OK;
+fail:
+  i2m_dt_destroy(&dt);
+  return err;
+}
+
+void i2m_dt_destroy(i2m_dt_t **dtp)
+{
+  if (!dtp || !*dtp) return;
+  i2m_dt_t *dt = *dtp;
+  i2m_free(&dt->xyzw);
+  i2m_free(&dt->vkind);
+  i2m_free(&dt->vtet);
+  free((void *)dt->vlock);
+  free(dt->tv);
+  free(dt->tn);
+  free((void *)dt->meta);
+  i2m_free(&dt->tpay);
+  i2m_free(&dt->free_t);
+  i2m_free(&dt->free_v);
+  i2m_free(dtp);
+}
+
+int64_t i2m_dt_count_tets(const i2m_dt_t *dt)
+{
+  int64_t n = 0;
+  uint32_t nt = i2m_dt_ntets_slots(dt);
+  for (uint32_t t = 0; t < nt; t++) n += i2m_dt_alive(dt, t);
+  return n;
+}
+
+/* ---- contexts ---- */
+
+i2m_err_t ctx_grow_u32(uint32_t **a, uint32_t *cap, uint32_t need)
+{
+  if (need <= *cap) return I2M_OK;
+  uint32_t c = GROW(need);
+  I2M_CALL(i2m_realloc(c, sizeof(uint32_t), a));
+  *cap = c;
+  return I2M_OK;
+}
+
+i2m_err_t i2m_dt_ctx_init(i2m_dt_ctx_t *ctx, i2m_dt_t *dt, uint32_t owner, bool locking)
+{
+  memset(ctx, 0, sizeof *ctx);
+  ctx->dt = dt;
+  ctx->owner = owner ? owner : 1;
+  ctx->locking = locking;
+  ctx->rng = 0x9E3779B97F4A7C15ull ^ ((uint64_t)owner * 0xD1B54A32D192ED03ull);
+  I2M_CALL(ctx_edges_begin(ctx, 64));
+  return I2M_OK;
+}
+
+void i2m_dt_ctx_free(i2m_dt_ctx_t *ctx)
+{
+  if (!ctx) return;
+  i2m_free(&ctx->cav);
+  i2m_free(&ctx->bnd);
+  i2m_free(&ctx->newt);
+  i2m_free(&ctx->held);
+  i2m_free(&ctx->etab);
+  i2m_free(&ctx->pool);
+  i2m_free(&ctx->vpool);
+  removal_free(&ctx->rm);
+  memset(ctx, 0, sizeof *ctx);
+}
+
+static i2m_err_t push_u32(uint32_t **a, uint32_t *n, uint32_t *cap, uint32_t x)
+{
+  if (*n == *cap) I2M_CALL(ctx_grow_u32(a, cap, *n + 1));
+  (*a)[(*n)++] = x;
+  return I2M_OK;
+}
+
+void i2m_dt_ctx_flush(i2m_dt_ctx_t *ctx)
+{
+  i2m_dt_t *dt = ctx->dt;
+  for (uint32_t k = 0; k < ctx->npool; k++)
+    if (push_u32(&dt->free_t, &dt->nfree_t, &dt->cap_free_t, ctx->pool[k]) != I2M_OK) break;
+  ctx->npool = 0;
+  for (uint32_t k = 0; k < ctx->nvpool; k++)
+    if (push_u32(&dt->free_v, &dt->nfree_v, &dt->cap_free_v, ctx->vpool[k]) != I2M_OK) break;
+  ctx->nvpool = 0;
+  /* fresh slots reserved but unused become dead slots in the shared list */
+  for (uint32_t t = ctx->fresh_next; t < ctx->fresh_end; t++)
+    if (push_u32(&dt->free_t, &dt->nfree_t, &dt->cap_free_t, t) != I2M_OK) break;
+  ctx->fresh_next = ctx->fresh_end = 0;
+}
+
+i2m_err_t ctx_pool_push(i2m_dt_ctx_t *ctx, uint32_t t) { return push_u32(&ctx->pool, &ctx->npool, &ctx->cap_pool, t); }
+i2m_err_t ctx_vpool_push(i2m_dt_ctx_t *ctx, uint32_t v) { return push_u32(&ctx->vpool, &ctx->nvpool, &ctx->cap_vpool, v); }
+
+/* ---- slot allocation ---- */
+
+#define FRESH_CHUNK 256u
+
+/* Moves up to FRESH_CHUNK never-used tet slots into the context's fresh range. */
+static bool take_fresh_tets(i2m_dt_ctx_t *ctx)
+{
+  i2m_dt_t *dt = ctx->dt;
+  uint32_t cur = atomic_load_explicit(&dt->nt_atomic, memory_order_relaxed);
+  for (;;) {
+    if (cur >= dt->cap_t) return false;
+    uint32_t take = dt->cap_t - cur < FRESH_CHUNK ? dt->cap_t - cur : FRESH_CHUNK;
+    if (!ctx->locking) take = 1; /* sequential: keep the high-water mark exact */
+    if (atomic_compare_exchange_weak_explicit(&dt->nt_atomic, &cur, cur + take, memory_order_relaxed,
+                                              memory_order_relaxed)) {
+      ctx->fresh_next = cur;
+      ctx->fresh_end = cur + take;
+      return true;
+    }
+  }
+}
+
+bool ctx_ensure_slots(i2m_dt_ctx_t *ctx, uint32_t ntets, uint32_t nverts)
+{
+  i2m_dt_t *dt = ctx->dt;
+  if (!ctx->locking) { /* sequential: shared lists are ours; grow when short */
+    uint32_t have_t = ctx->npool + dt->nfree_t + (ctx->fresh_end - ctx->fresh_next) + (dt->cap_t - i2m_dt_ntets_slots(dt));
+    uint32_t have_v = ctx->nvpool + dt->nfree_v + (dt->cap_v - i2m_dt_nverts_slots(dt));
+    if (have_t >= ntets && have_v >= nverts) return true;
+    uint64_t ct = have_t >= ntets ? dt->cap_t : (uint64_t)dt->cap_t + dt->cap_t / 2 + ntets + 1024;
+    uint64_t cv = have_v >= nverts ? dt->cap_v : (uint64_t)dt->cap_v + dt->cap_v / 2 + nverts + 1024;
+    if (ct > (UINT32_MAX >> 2) - 1) ct = (UINT32_MAX >> 2) - 1;
+    if (cv > UINT32_MAX - 2) cv = UINT32_MAX - 2;
+    if (i2m_dt_reserve(dt, (uint32_t)cv, (uint32_t)ct) != I2M_OK) return false;
+    have_t = ctx->npool + dt->nfree_t + (ctx->fresh_end - ctx->fresh_next) + (dt->cap_t - i2m_dt_ntets_slots(dt));
+    return have_t >= ntets;
+  }
+  while (ctx->npool + (ctx->fresh_end - ctx->fresh_next) < ntets) {
+    if (ctx->fresh_next < ctx->fresh_end) { /* keep the remaining fresh slots in the pool */
+      for (; ctx->fresh_next < ctx->fresh_end; ctx->fresh_next++)
+        if (ctx_pool_push(ctx, ctx->fresh_next) != I2M_OK) return false;
+    }
+    if (!take_fresh_tets(ctx)) return false;
+  }
+  if (ctx->nvpool < nverts) {
+    uint32_t cur = atomic_load_explicit(&dt->nv_atomic, memory_order_relaxed);
+    if (cur + nverts - ctx->nvpool > dt->cap_v) return false;
+  }
+  return true;
+}
+
+uint32_t ctx_tet_slot(i2m_dt_ctx_t *ctx)
+{
+  i2m_dt_t *dt = ctx->dt;
+  if (ctx->npool) return ctx->pool[--ctx->npool];
+  if (ctx->fresh_next < ctx->fresh_end) return ctx->fresh_next++;
+  if (!ctx->locking && dt->nfree_t) return dt->free_t[--dt->nfree_t];
+  bool ok = take_fresh_tets(ctx);
+  I2M_CHECK_ABORT(ok, "tet slot requested beyond the reserved capacity");
+  return ctx->fresh_next++;
+}
+
+uint32_t ctx_vertex_slot(i2m_dt_ctx_t *ctx)
+{
+  i2m_dt_t *dt = ctx->dt;
+  if (ctx->nvpool) return ctx->vpool[--ctx->nvpool];
+  if (!ctx->locking && dt->nfree_v) return dt->free_v[--dt->nfree_v];
+  uint32_t v = atomic_fetch_add_explicit(&dt->nv_atomic, 1, memory_order_relaxed);
+  I2M_CHECK_ABORT(v < dt->cap_v, "vertex slot requested beyond the reserved capacity");
+  return v;
+}
+
+/* ---- edge table ---- */
+
+i2m_err_t ctx_edges_begin(i2m_dt_ctx_t *ctx, uint32_t nfaces)
+{
+  if (4 * nfaces > ctx->ecap) {
+    uint32_t cap = ctx->ecap ? ctx->ecap : 256;
+    while (4 * nfaces > cap) cap *= 2;
+    i2m_free(&ctx->etab);
+    I2M_CALL(i2m_calloc(cap, sizeof *ctx->etab, &ctx->etab));
+    ctx->ecap = cap;
+    ctx->stamp = 0;
+  }
+  if (++ctx->stamp == 0) { /* wrapped: clear */
+    memset(ctx->etab, 0, ctx->ecap * sizeof *ctx->etab);
+    ctx->stamp = 1;
+  }
+  return I2M_OK;
+}

@@ -1,0 +1,151 @@
+/* Geometry layer: circumcentres and quality measures in double precision (REFERENCE §3.7). */
+#include "i2m/geometry.h"
+
+#include <math.h>
+
+static void sub3(const double a[3], const double b[3], double r[3])
+{
+  r[0] = a[0] - b[0];
+  r[1] = a[1] - b[1];
+  r[2] = a[2] - b[2];
+}
+static void cross3(const double a[3], const double b[3], double r[3])
+{
+  r[0] = a[1] * b[2] - a[2] * b[1];
+  r[1] = a[2] * b[0] - a[0] * b[2];
+  r[2] = a[0] * b[1] - a[1] * b[0];
+}
+static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+int i2m_tet_circumcenter(const double a[3], const double b[3], const double c[3], const double d[3],
+                         double cc[3], double *r2)
+{
+  /* c - a = (|u|^2 (v x w) + |v|^2 (w x u) + |w|^2 (u x v)) / (2 u.(v x w)) */
+  double u[3], v[3], w[3], vw[3], wu[3], uv[3];
+  sub3(b, a, u);
+  sub3(c, a, v);
+  sub3(d, a, w);
+  cross3(v, w, vw);
+  cross3(w, u, wu);
+  cross3(u, v, uv);
+  double den = 2.0 * dot3(u, vw);
+  double lu = dot3(u, u), lv = dot3(v, v), lw = dot3(w, w);
+  double scale = lu + lv + lw;
+  if (!(fabs(den) > 1e-300) || !(fabs(den) > 1e-14 * scale * sqrt(scale))) {
+    cc[0] = cc[1] = cc[2] = 1e300;
+    *r2 = INFINITY;
+    return -1;
+  }
+  double x[3];
+  for (int k = 0; k < 3; k++) x[k] = (lu * vw[k] + lv * wu[k] + lw * uv[k]) / den;
+  cc[0] = a[0] + x[0];
+  cc[1] = a[1] + x[1];
+  cc[2] = a[2] + x[2];
+  *r2 = dot3(x, x);
+  return 0;
+}
+
+double i2m_tet_signed_volume6(const double a[3], const double b[3], const double c[3], const double d[3])
+{
+  double u[3], v[3], w[3], vw[3];
+  sub3(b, a, u);
+  sub3(c, a, v);
+  sub3(d, a, w);
+  cross3(v, w, vw);
+  return dot3(u, vw);
+}
+
+double i2m_tet_min_edge2(const double a[3], const double b[3], const double c[3], const double d[3])
+{
+  const double *p[4] = {a, b, c, d};
+  double m = INFINITY;
+  for (int i = 0; i < 4; i++)
+    for (int j = i + 1; j < 4; j++) {
+      double l = i2m_dist2(p[i], p[j]);
+      if (l < m) m = l;
+    }
+  return m;
+}
+
+double i2m_tet_radius_edge(const double a[3], const double b[3], const double c[3], const double d[3])
+{
+  double cc[3], r2;
+  if (i2m_tet_circumcenter(a, b, c, d, cc, &r2) != 0) return INFINITY;
+  return sqrt(r2 / i2m_tet_min_edge2(a, b, c, d));
+}
+
+void i2m_tet_dihedral_angles(const double a[3], const double b[3], const double c[3], const double d[3],
+                             double angles[6])
+{
+  /* face normals (outward for a positive tet), face k opposite vertex k */
+  const double *p[4] = {a, b, c, d};
+  static const int fv[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+  double n[4][3];
+  for (int f = 0; f < 4; f++) {
+    double e1[3], e2[3];
+    sub3(p[fv[f][1]], p[fv[f][0]], e1);
+    sub3(p[fv[f][2]], p[fv[f][0]], e2);
+    cross3(e1, e2, n[f]);
+    double l = sqrt(dot3(n[f], n[f]));
+    if (l > 0)
+      for (int k = 0; k < 3; k++) n[f][k] /= l;
+  }
+  /* the dihedral angle at edge (i,j) is between the faces opposite the other two vertices */
+  static const int edges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+  for (int e = 0; e < 6; e++) {
+    int f1 = -1, f2 = -1;
+    for (int k = 0; k < 4; k++)
+      if (k != edges[e][0] && k != edges[e][1]) {
+        if (f1 < 0) f1 = k;
+        else f2 = k;
+      }
+    double cs = -dot3(n[f1], n[f2]);
+    if (cs > 1) cs = 1;
+    if (cs < -1) cs = -1;
+    angles[e] = acos(cs) * (180.0 / I2M_PI);
+  }
+}
+
+int i2m_tri_circumcenter(const double a[3], const double b[3], const double c[3], double cc[3],
+                         double *r2)
+{
+  /* c - a = (|u|^2 v - |v|^2 u) x (u x v) / (2 |u x v|^2) */
+  double u[3], v[3], uv[3], t[3], x[3];
+  sub3(b, a, u);
+  sub3(c, a, v);
+  cross3(u, v, uv);
+  double den = 2.0 * dot3(uv, uv);
+  if (!(den > 0)) {
+    cc[0] = cc[1] = cc[2] = 1e300;
+    *r2 = INFINITY;
+    return -1;
+  }
+  double lu = dot3(u, u), lv = dot3(v, v);
+  for (int k = 0; k < 3; k++) t[k] = lu * v[k] - lv * u[k];
+  cross3(t, uv, x);
+  for (int k = 0; k < 3; k++) {
+    x[k] /= den;
+    cc[k] = a[k] + x[k];
+  }
+  *r2 = dot3(x, x);
+  return 0;
+}
+
+double i2m_tri_min_angle(const double a[3], const double b[3], const double c[3])
+{
+  const double *p[3] = {a, b, c};
+  double m = 180.0;
+  for (int i = 0; i < 3; i++) {
+    double e1[3], e2[3];
+    sub3(p[(i + 1) % 3], p[i], e1);
+    sub3(p[(i + 2) % 3], p[i], e2);
+    double l = sqrt(dot3(e1, e1) * dot3(e2, e2));
+    if (!(l > 0)) return 0.0;
+    double cs = dot3(e1, e2) / l;
+    if (cs > 1) cs = 1;
+    if (cs < -1) cs = -1;
+    double ang = acos(cs) * (180.0 / I2M_PI);
+    if (ang < m) m = ang;
+  }
+  return m;
+}

@@ -1,0 +1,292 @@
+/* Image layer: exact Euclidean distance transform with feature transform (separable, one
+ * pass per axis; the lower envelope of parabolas of Felzenszwalb and Huttenlocher carrying
+ * the argmin), the closest-interface-point oracle and segment bisection. */
+#include "i2m/edt.h"
+#include "i2m/geometry.h"
+
+#include <stdbool.h>
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static bool is_boundary(const i2m_image_t *img, int64_t i, int64_t j, int64_t k)
+{
+  int l = i2m_image_label_voxel(img, i, j, k);
+  return i2m_image_label_voxel(img, i - 1, j, k) != l || i2m_image_label_voxel(img, i + 1, j, k) != l ||
+         i2m_image_label_voxel(img, i, j - 1, k) != l || i2m_image_label_voxel(img, i, j + 1, k) != l ||
+         i2m_image_label_voxel(img, i, j, k - 1) != l || i2m_image_label_voxel(img, i, j, k + 1) != l;
+}
+
+/* Box K: boundary voxels lie within one voxel of the foreground, so the foreground's
+ * bounding box grown by one voxel (clamped to the image) holds them all. */
+static void boundary_box(const i2m_image_t *img, int64_t lo[3], int64_t hi[3])
+{
+  for (int a = 0; a < 3; a++) {
+    lo[a] = img->n[a];
+    hi[a] = -1;
+  }
+  for (int64_t k = 0; k < img->n[2]; k++)
+    for (int64_t j = 0; j < img->n[1]; j++) {
+      const uint16_t *row = img->vox + (k * img->n[1] + j) * img->n[0];
+      int64_t first = -1, last = -1;
+      for (int64_t i = 0; i < img->n[0]; i++)
+        if (row[i]) {
+          if (first < 0) first = i;
+          last = i;
+        }
+      if (first < 0) continue;
+      int64_t ijk_lo[3] = {first, j, k}, ijk_hi[3] = {last, j, k};
+      for (int a = 0; a < 3; a++) {
+        if (ijk_lo[a] < lo[a]) lo[a] = ijk_lo[a];
+        if (ijk_hi[a] > hi[a]) hi[a] = ijk_hi[a];
+      }
+    }
+  for (int a = 0; a < 3; a++) {
+    if (hi[a] < 0) { /* no foreground: empty box */
+      lo[a] = 0;
+      hi[a] = -1;
+      continue;
+    }
+    lo[a] = lo[a] > 0 ? lo[a] - 1 : 0;
+    hi[a] = hi[a] < img->n[a] - 1 ? hi[a] + 1 : img->n[a] - 1;
+  }
+}
+
+/* One 1-D pass of the squared distance transform along a line of n voxels with spacing w:
+ * f[q] is the squared distance carried in from earlier passes (INFINITY: no feature),
+ * out_arg[x] receives the q minimising f[q] + (w (x - q))^2.  v, z: scratch of n and n+1. */
+static void envelope_1d(const double *f, int64_t n, double w, int64_t *v, double *z, int64_t *out_arg)
+{
+  int64_t k = -1;
+  double w2 = w * w;
+  for (int64_t q = 0; q < n; q++) {
+    if (!isfinite(f[q])) continue;
+    double fq = f[q] + w2 * (double)q * (double)q;
+    while (k >= 0) {
+      int64_t p = v[k];
+      double s = (fq - (f[p] + w2 * (double)p * (double)p)) / (2.0 * w2 * (double)(q - p));
+      if (s > z[k]) break;
+      k--;
+    }
+    k++;
+    v[k] = q;
+    z[k] = k == 0 ? -INFINITY : ((fq - (f[v[k - 1]] + w2 * (double)v[k - 1] * (double)v[k - 1])) /
+                                 (2.0 * w2 * (double)(q - v[k - 1])));
+    z[k + 1] = INFINITY;
+  }
+  if (k < 0) {
+    for (int64_t x = 0; x < n; x++) out_arg[x] = -1;
+    return;
+  }
+  int64_t j = 0;
+  for (int64_t x = 0; x < n; x++) {
+    while (z[j + 1] < (double)x) j++;
+    out_arg[x] = v[j];
+  }
+}
+
+/* Coordinates of a box-linear index (32-bit arithmetic: the box holds < 2^31 voxels). */
+static inline void box_coords(const i2m_edt_t *e, uint32_t f, uint32_t c[3])
+{
+  uint32_t m0 = (uint32_t)e->m[0], m1 = (uint32_t)e->m[1];
+  uint32_t q = f / m0;
+  c[0] = f - q * m0;
+  c[2] = q / m1;
+  c[1] = q - c[2] * m1;
+}
+
+/* First pass, along axis 0: each voxel's nearest boundary voxel on its own row, by a
+ * forward and a backward sweep. */
+static void edt_pass_rows(i2m_edt_t *e)
+{
+  const int64_t n = e->m[0], nrows = e->m[1] * e->m[2];
+  I2M_OMP(omp parallel for schedule(static))
+  for (int64_t row = 0; row < nrows; row++) {
+    int32_t *ft = e->ft + row * n;
+    int64_t last = -1;
+    for (int64_t i = 0; i < n; i++) {
+      if (ft[i] >= 0) last = i;
+      ft[i] = last < 0 ? -1 : (int32_t)(row * n + last);
+    }
+    last = -1;
+    for (int64_t i = n - 1; i >= 0; i--) {
+      bool feature = ft[i] == (int32_t)(row * n + i);
+      if (feature) last = i;
+      if (last >= 0 && (ft[i] < 0 || (last - i) < (i - (ft[i] - row * n)))) ft[i] = (int32_t)(row * n + last);
+    }
+  }
+}
+
+/* Passes along axes 1 and 2: each voxel takes the best feature among the line's voxels'
+ * current features (lower envelope of parabolas).  The feature of voxel q of the line lies
+ * in the same (ax = q) slab, so its distance is that of the components along the earlier
+ * axes only. */
+static i2m_err_t edt_pass(i2m_edt_t *e, int ax)
+{
+  const int64_t *m = e->m;
+  int64_t stride = ax == 1 ? m[0] : m[0] * m[1];
+  int64_t n = m[ax], nlines = m[0] * m[1] * m[2] / n;
+  const double *sp = e->img->spacing;
+  double s0 = sp[0] * sp[0], s1 = sp[1] * sp[1];
+  int failed = 0;
+  I2M_OMP(omp parallel reduction(| : failed))
+  {
+    double *f = malloc((size_t)n * sizeof *f), *z = malloc((size_t)(n + 1) * sizeof *z);
+    int64_t *v = malloc((size_t)n * sizeof *v), *arg = malloc((size_t)n * sizeof *arg);
+    int32_t *feat = malloc((size_t)n * sizeof *feat);
+    if (!f || !z || !v || !arg || !feat) failed = 1;
+    I2M_OMP(omp for schedule(dynamic, 64))
+    for (int64_t line = 0; line < nlines; line++) {
+      if (failed) continue;
+      /* line start: axis 1 lines are indexed by (i, k), axis 2 lines by (i, j) */
+      int64_t base = ax == 1 ? (line % m[0]) + (line / m[0]) * m[0] * m[1] : line;
+      uint32_t c[3];
+      box_coords(e, (uint32_t)base, c);
+      for (int64_t q = 0; q < n; q++) {
+        int32_t fq = e->ft[base + q * stride];
+        feat[q] = fq;
+        if (fq < 0) {
+          f[q] = INFINITY;
+          continue;
+        }
+        uint32_t fc[3];
+        box_coords(e, (uint32_t)fq, fc);
+        double d0 = (double)fc[0] - (double)c[0], d1 = (double)fc[1] - (double)c[1];
+        f[q] = s0 * d0 * d0 + (ax == 2 ? s1 * d1 * d1 : 0.0);
+      }
+      envelope_1d(f, n, sp[ax], v, z, arg);
+      for (int64_t x = 0; x < n; x++) e->ft[base + x * stride] = arg[x] < 0 ? -1 : feat[arg[x]];
+    }
+    free(f);
+    free(z);
+    free(v);
+    free(arg);
+    free(feat);
+  }
+  I2M_CHECK(!failed, I2M_ERR_MEMORY, "out of memory in the distance transform");
+  return I2M_OK;
+}
+
+i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
+{
+  i2m_edt_t *e = NULL;
+  *out = NULL;
+  I2M_CALL(i2m_calloc(1, sizeof *e, &e));
+  e->img = img;
+  int64_t hi[3];
+  boundary_box(img, e->lo, hi);
+  for (int a = 0; a < 3; a++) e->m[a] = hi[a] - e->lo[a] + 1;
+  int64_t nbox = e->m[0] * e->m[1] * e->m[2];
+  if (nbox <= 0) { /* no foreground at all */
+    *out = e;
+    return I2M_OK;
+  }
+  if (nbox >= INT32_MAX) {
+    i2m_free(&e);
+    return I2M_ERROR(I2M_ERR_UNSUPPORTED, "%s: the labelled region spans %lld voxels; at most 2^31 are supported",
+                     img->path, (long long)nbox);
+  }
+  i2m_err_t err = i2m_malloc((size_t)nbox, sizeof(int32_t), &e->ft);
+  if (err != I2M_OK) {
+    i2m_free(&e);
+    return err;
+  }
+  int64_t nb = 0;
+  I2M_OMP(omp parallel for reduction(+ : nb) schedule(static))
+  for (int64_t k = 0; k < e->m[2]; k++)
+    for (int64_t j = 0; j < e->m[1]; j++)
+      for (int64_t i = 0; i < e->m[0]; i++) {
+        int64_t idx = (k * e->m[1] + j) * e->m[0] + i;
+        bool b = is_boundary(img, e->lo[0] + i, e->lo[1] + j, e->lo[2] + k);
+        e->ft[idx] = b ? (int32_t)idx : -1;
+        nb += b;
+      }
+  e->nboundary = nb;
+  edt_pass_rows(e);
+  for (int ax = 1; ax < 3 && err == I2M_OK; ax++) err = edt_pass(e, ax);
+  if (err != I2M_OK) i2m_edt_destroy(&e);
+  *out = e;
+  return err;
+}
+
+void i2m_edt_destroy(i2m_edt_t **e)
+{
+  if (!e || !*e) return;
+  i2m_free(&(*e)->ft);
+  i2m_free(e);
+}
+
+/* Closest point to p on the faces between boundary voxel b (image index) and its
+ * differently-labelled 6-neighbours. */
+static double closest_on_voxel_faces(const i2m_image_t *img, const int64_t b[3], const double p[3], double z[3],
+                                     int pair[2])
+{
+  int lb = i2m_image_label_voxel(img, b[0], b[1], b[2]);
+  double best = INFINITY;
+  for (int ax = 0; ax < 3; ax++)
+    for (int dir = -1; dir <= 1; dir += 2) {
+      int64_t n[3] = {b[0], b[1], b[2]};
+      n[ax] += dir;
+      if (i2m_image_label_voxel(img, n[0], n[1], n[2]) == lb) continue;
+      double q[3], d2 = 0;
+      for (int a = 0; a < 3; a++) {
+        double c = (double)b[a] * img->spacing[a], h = 0.5 * img->spacing[a];
+        if (a == ax) q[a] = c + dir * h;
+        else q[a] = fmin(fmax(p[a], c - h), c + h); /* clamp into the square face */
+        d2 += i2m_sq(p[a] - q[a]);
+      }
+      if (d2 < best) {
+        best = d2;
+        memcpy(z, q, sizeof q);
+        if (pair) {
+          int ln = i2m_image_label_voxel(img, n[0], n[1], n[2]);
+          pair[0] = lb < ln ? lb : ln;
+          pair[1] = lb < ln ? ln : lb;
+        }
+      }
+    }
+  return best;
+}
+
+double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double z[3], int pair[2])
+{
+  if (e->nboundary == 0) {
+    memcpy(z, p, 3 * sizeof *z);
+    if (pair) pair[0] = pair[1] = 0;
+    return INFINITY;
+  }
+  const i2m_image_t *img = e->img;
+  int64_t c[3];
+  for (int a = 0; a < 3; a++) { /* voxel of p's projection on the box K */
+    double u = floor(p[a] / img->spacing[a] + 0.5);
+    int64_t lo = e->lo[a], hi = e->lo[a] + e->m[a] - 1;
+    c[a] = u < (double)lo ? lo : u > (double)hi ? hi : (int64_t)u;
+  }
+  int32_t f = e->ft[((c[2] - e->lo[2]) * e->m[1] + (c[1] - e->lo[1])) * e->m[0] + (c[0] - e->lo[0])];
+  uint32_t fc[3];
+  box_coords(e, (uint32_t)f, fc);
+  int64_t b[3] = {e->lo[0] + fc[0], e->lo[1] + fc[1], e->lo[2] + fc[2]};
+  return closest_on_voxel_faces(img, b, p, z, pair);
+}
+
+void i2m_edt_bisect(const i2m_image_t *img, const double a[3], const double b[3], double tol, double x[3],
+                    int *label_a, int *label_b)
+{
+  double p[3] = {a[0], a[1], a[2]}, q[3] = {b[0], b[1], b[2]};
+  int la = i2m_image_label_at(img, p), lb = i2m_image_label_at(img, q);
+  double tol2 = tol * tol;
+  for (int it = 0; it < 200 && i2m_dist2(p, q) > tol2; it++) {
+    double m[3] = {0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1]), 0.5 * (p[2] + q[2])};
+    int lm = i2m_image_label_at(img, m);
+    if (lm != la) { /* keep the half next to a: the first change from a */
+      memcpy(q, m, sizeof m);
+      lb = lm;
+    } else {
+      memcpy(p, m, sizeof m);
+    }
+  }
+  for (int k = 0; k < 3; k++) x[k] = 0.5 * (p[k] + q[k]);
+  *label_a = la;
+  *label_b = lb;
+}

@@ -1,0 +1,148 @@
+/* io layer: the run report (stdout summary and JSON file). */
+#include "i2m/report.h"
+
+#include <errno.h>
+#include <math.h>
+#include <string.h>
+
+const char *i2m_phase_name(int phase)
+{
+  static const char *names[I2M_NPHASES] = {"read", "distance_transform", "refinement", "extraction", "write"};
+  return phase >= 0 && phase < I2M_NPHASES ? names[phase] : "?";
+}
+
+static double tets_per_second(const i2m_report_t *r)
+{
+  double t = r->phase_seconds[I2M_PHASE_REFINE];
+  return t > 0 ? (double)r->nt / t : 0;
+}
+
+void i2m_report_print(FILE *f, const i2m_report_t *r)
+{
+  const i2m_quality_t *q = r->quality;
+  fprintf(f, "i2m: %s -> %s\n", r->input, r->output);
+  fprintf(f, "  parameters   delta %.4g mm, ratio %.3g, facet angle %.3g deg, size %.4g mm\n", r->params->delta,
+          r->params->ratio, r->params->facet_angle, r->params->size);
+  fprintf(f, "  mesh         %lld vertices, %lld tetrahedra, %lld interface triangles\n", (long long)r->nv,
+          (long long)r->nt, (long long)r->ntri);
+  fprintf(f, "  refinement   %lld insertions (R1 %lld, R2 %lld, R3 %lld, R4 %lld, R5 %lld, R6 %lld), %lld removals (R7)\n",
+          (long long)r->stats.insertions, (long long)r->stats.rule[1], (long long)r->stats.rule[2],
+          (long long)r->stats.rule[3], (long long)r->stats.rule[4], (long long)r->stats.rule[5],
+          (long long)r->stats.rule[6], (long long)r->stats.removals);
+  fprintf(f, "  time         ");
+  for (int p = 0; p < I2M_NPHASES; p++) fprintf(f, "%s %.2f s, ", i2m_phase_name(p), r->phase_seconds[p]);
+  fprintf(f, "total %.2f s\n", r->total_seconds);
+  fprintf(f, "  speed        %.3g tets/s (refinement), %d thread(s), %d rank(s)\n", tets_per_second(r), r->threads,
+          r->ranks);
+  fprintf(f, "  memory       peak %.1f MB, %.0f bytes per output tet\n", (double)r->peak_rss / 1048576.0,
+          r->nt ? (double)r->peak_rss / (double)r->nt : 0.0);
+  if (q) {
+    fprintf(f, "  quality      dihedral %.2f..%.2f deg, max radius-edge %.3f (%lld above %.3g), min facet angle %.2f deg\n",
+            q->min_dihedral, q->max_dihedral, q->max_radius_edge, (long long)q->n_ratio_above, q->ratio_bound,
+            q->min_facet_angle);
+    fprintf(f, "               %lld interface triangles below %.3g deg (%lld of them at junctions of 3+ labels)\n",
+            (long long)q->n_facet_below, q->facet_bound, (long long)q->n_facet_below_junction);
+  }
+}
+
+/* ---- JSON ---- */
+
+static void json_num(FILE *f, double x)
+{
+  if (isfinite(x)) fprintf(f, "%.10g", x);
+  else fprintf(f, "null");
+}
+
+static void json_str(FILE *f, const char *s)
+{
+  fputc('"', f);
+  for (; s && *s; s++) {
+    unsigned char c = (unsigned char)*s;
+    if (c == '"' || c == '\\') fprintf(f, "\\%c", c);
+    else if (c < 0x20) fprintf(f, "\\u%04x", c);
+    else fputc(c, f);
+  }
+  fputc('"', f);
+}
+
+static void json_params(FILE *f, const i2m_report_t *r)
+{
+  const i2m_refine_params_t *p = r->params;
+  fprintf(f, "  \"parameters\": {\"delta\": ");
+  json_num(f, p->delta);
+  fprintf(f, ", \"ratio\": ");
+  json_num(f, p->ratio);
+  fprintf(f, ", \"facet_angle\": ");
+  json_num(f, p->facet_angle);
+  fprintf(f, ", \"size\": ");
+  json_num(f, p->size);
+  fprintf(f, ", \"size_labels\": [");
+  for (int k = 0; k < p->nlabel_sizes; k++) {
+    fprintf(f, "%s{\"label\": %lld, \"size\": ", k ? ", " : "", (long long)p->label_sizes[k].value);
+    json_num(f, p->label_sizes[k].size);
+    fprintf(f, "}");
+  }
+  fprintf(f, "], \"regions\": [");
+  for (int k = 0; k < p->nregions; k++) {
+    const i2m_region_t *g = &p->regions[k];
+    fprintf(f, "%s{\"lo\": [%.10g, %.10g, %.10g], \"hi\": [%.10g, %.10g, %.10g], \"size\": ", k ? ", " : "", g->lo[0],
+            g->lo[1], g->lo[2], g->hi[0], g->hi[1], g->hi[2]);
+    json_num(f, g->size);
+    fprintf(f, ", \"ratio\": ");
+    json_num(f, g->ratio);
+    fprintf(f, "}");
+  }
+  fprintf(f, "], \"threads\": %d, \"ranks\": %d},\n", r->threads, r->ranks);
+}
+
+static void json_quality(FILE *f, const i2m_quality_t *q)
+{
+  fprintf(f, "  \"quality\": {\"min_dihedral\": %.6g, \"max_dihedral\": %.6g, \"max_radius_edge\": %.6g, ",
+          q->min_dihedral, q->max_dihedral, q->max_radius_edge);
+  fprintf(f, "\"tets_above_ratio\": %lld, \"min_facet_angle\": %.6g, \"facets_below_angle\": %lld, ",
+          (long long)q->n_ratio_above, q->min_facet_angle, (long long)q->n_facet_below);
+  fprintf(f, "\"facets_below_angle_at_junctions\": %lld, \"dihedral_histogram\": [", (long long)q->n_facet_below_junction);
+  for (int k = 0; k < 180; k++) fprintf(f, "%s%lld", k ? ", " : "", (long long)q->dihedral_hist[k]);
+  fprintf(f, "]},\n  \"labels\": [");
+  for (int l = 0; l < q->nlabels; l++) {
+    const i2m_label_figures_t *g = &q->labels[l];
+    double err = g->voxel_volume > 0 ? 100.0 * (g->volume - g->voxel_volume) / g->voxel_volume : 0;
+    fprintf(f, "%s\n    {\"label\": %lld, \"tets\": %lld, \"volume_mm3\": %.8g, \"voxel_volume_mm3\": %.8g, \"volume_error_percent\": %.4g}",
+            l ? "," : "", (long long)g->value, (long long)g->ntets, g->volume, g->voxel_volume, err);
+  }
+  fprintf(f, "\n  ],\n");
+}
+
+i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
+{
+  FILE *f = fopen(path, "w");
+  I2M_CHECK(f, I2M_ERR_IO, "%s: cannot write the report: %s", path, strerror(errno));
+  fprintf(f, "{\n  \"input\": ");
+  json_str(f, r->input);
+  fprintf(f, ",\n  \"output\": ");
+  json_str(f, r->output);
+  fprintf(f, ",\n");
+  json_params(f, r);
+  fprintf(f, "  \"counts\": {\"vertices\": %lld, \"tetrahedra\": %lld, \"interface_triangles\": %lld, \"working_tetrahedra\": %lld},\n",
+          (long long)r->nv, (long long)r->nt, (long long)r->ntri, (long long)r->working_tets);
+  const i2m_refine_stats_t *s = &r->stats;
+  fprintf(f, "  \"refinement\": {\"insertions\": %lld, \"removals\": %lld, \"rollbacks\": %lld, \"failed\": %lld, \"duplicates\": %lld, ",
+          (long long)s->insertions, (long long)s->removals, (long long)s->rollbacks, (long long)s->failed,
+          (long long)s->duplicates);
+  fprintf(f, "\"rules\": {\"R1\": %lld, \"R2\": %lld, \"R3\": %lld, \"R4\": %lld, \"R5\": %lld, \"R6\": %lld, \"R7\": %lld}},\n",
+          (long long)s->rule[1], (long long)s->rule[2], (long long)s->rule[3], (long long)s->rule[4],
+          (long long)s->rule[5], (long long)s->rule[6], (long long)s->rule[7]);
+  fprintf(f, "  \"time_seconds\": {");
+  for (int p = 0; p < I2M_NPHASES; p++) fprintf(f, "\"%s\": %.4f, ", i2m_phase_name(p), r->phase_seconds[p]);
+  fprintf(f, "\"total\": %.4f},\n", r->total_seconds);
+  fprintf(f, "  \"speed\": {\"tets_per_second\": %.6g, \"tets_per_second_total\": %.6g},\n", tets_per_second(r),
+          r->total_seconds > 0 ? (double)r->nt / r->total_seconds : 0);
+  fprintf(f, "  \"memory\": {\"peak_rss_bytes\": %zu, \"bytes_per_tet\": %.2f},\n", r->peak_rss,
+          r->nt ? (double)r->peak_rss / (double)r->nt : 0.0);
+  if (r->quality) json_quality(f, r->quality);
+  fprintf(f, "  \"version\": \"i2m 0.1\"\n}\n");
+  int bad = ferror(f);
+  bad |= fclose(f) != 0;
+  I2M_CHECK(!bad, I2M_ERR_IO, "%s: writing the report failed: %s", path, strerror(errno));
+  return I2M_OK;
+}

@@ -1,0 +1,191 @@
+/* Refine layer: evaluation of the refinement rules on a tet (ARCHITECTURE §4).
+ *
+ * When a tet is created its circumcentre, radius and the label there are cached
+ * (tet_info_compute); classify_level then tells which list the tet belongs to, cheaply,
+ * and classify_action, when the tet is popped, computes the point to insert and a tet whose
+ * circumball holds it, following the priority R1, R5/R6, R2, R3, R4. */
+#include "refine_impl.h"
+
+#include <string.h>
+
+void tet_info_compute(const i2m_refine_t *r, uint32_t t)
+{
+  const i2m_dt_t *dt = r->dt;
+  const uint32_t *v = dt->tv + 4 * (size_t)t;
+  tet_info_t *ti = tinfo(dt, t);
+  if (i2m_tet_circumcenter(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]),
+                           ti->cc, &ti->r2) != 0) {
+    ti->label = 0;
+    return;
+  }
+  ti->label = (uint16_t)i2m_image_label_at(r->img, ti->cc);
+}
+
+/* Size and ratio bounds at a point (grid frame) with label index lab. */
+static void local_bounds(const i2m_refine_t *r, const double c[3], int lab, double *size, double *ratio)
+{
+  double s = r->p.size, q = r->p.ratio;
+  if (r->label_size && r->label_size[lab] < s) s = r->label_size[lab];
+  if (r->p.nregions) {
+    double w[3];
+    i2m_image_grid_to_world(r->img, c, w);
+    for (int k = 0; k < r->p.nregions; k++) {
+      const i2m_region_t *g = &r->p.regions[k];
+      if (w[0] < g->lo[0] || w[0] > g->hi[0] || w[1] < g->lo[1] || w[1] > g->hi[1] || w[2] < g->lo[2] ||
+          w[2] > g->hi[2])
+        continue;
+      if (g->size < s) s = g->size;
+      if (g->ratio < q) q = g->ratio;
+    }
+  }
+  *size = s;
+  *ratio = q;
+}
+
+/* R3 or R4 on an inside tet. */
+static bool volume_bad(const i2m_refine_t *r, uint32_t t, const tet_info_t *ti)
+{
+  const i2m_dt_t *dt = r->dt;
+  const uint32_t *v = dt->tv + 4 * (size_t)t;
+  double size, ratio;
+  local_bounds(r, ti->cc, ti->label, &size, &ratio);
+  if (ti->r2 > size * size) return true;
+  double l2 = i2m_tet_min_edge2(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]));
+  return ti->r2 > ratio * ratio * l2;
+}
+
+/* Which rule of R3/R4 fires (3 or 4), for the statistics. */
+static int volume_rule(const i2m_refine_t *r, const tet_info_t *ti)
+{
+  double size, ratio;
+  local_bounds(r, ti->cc, ti->label, &size, &ratio);
+  return ti->r2 > size * size ? 4 : 3;
+}
+
+/* A restricted facet (face i of t) that R6 (returns 6) or R5 (returns 5) wants refined. */
+static int facet_bad(const i2m_refine_t *r, uint32_t t, uint32_t i)
+{
+  const i2m_dt_t *dt = r->dt;
+  uint32_t n = dt->tn[4 * t + i];
+  if (n == I2M_DT_NONE) return 0; /* the box hull: far from the image */
+  if (tinfo(dt, n >> 2)->label == tinfo(dt, t)->label) return 0;
+  const uint32_t *v = dt->tv + 4 * (size_t)t;
+  const double *p[3];
+  int k = 0;
+  for (uint32_t j = 0; j < 4; j++) {
+    if (j == i) continue;
+    if (dt->vkind[v[j]] != I2M_VK_SURFACE) return 6;
+    p[k++] = i2m_dt_xyz(dt, v[j]);
+  }
+  /* R5: smallest angle < theta  <=>  l_min^2 |u x w|^2 < sin^2(theta) |u|^2 |w|^2 |u - w|^2 */
+  double u[3], w[3], x[3];
+  for (int a = 0; a < 3; a++) {
+    u[a] = p[1][a] - p[0][a];
+    w[a] = p[2][a] - p[0][a];
+    x[a] = p[2][a] - p[1][a];
+  }
+  double lu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+  double lw = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+  double lx = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
+  double cx = u[1] * w[2] - u[2] * w[1], cy = u[2] * w[0] - u[0] * w[2], cz = u[0] * w[1] - u[1] * w[0];
+  double area2 = cx * cx + cy * cy + cz * cz;
+  double lmin = fmin(lu, fmin(lw, lx));
+  return lmin * area2 < r->sin2_facet * lu * lw * lx ? 5 : 0;
+}
+
+/* Ball of t meets an interface: the closest interface point z to its centre, the patch it
+ * lies on, and the squared distance. */
+static bool ball_meets_interface(const i2m_refine_t *r, const tet_info_t *ti, double z[3], uint32_t *patch,
+                                 double *d2)
+{
+  *d2 = INFINITY;
+  if (!isfinite(ti->r2)) return false;
+  int pair[2];
+  *d2 = i2m_edt_closest(r->edt, ti->cc, z, pair);
+  *patch = patch_key(pair[0], pair[1]);
+  return *d2 <= ti->r2;
+}
+
+static bool in_box(const i2m_dt_t *dt, const double p[3])
+{
+  for (int a = 0; a < 3; a++)
+    if (!(p[a] > dt->box_lo[a] && p[a] < dt->box_hi[a])) return false;
+  return true;
+}
+
+int classify_level(i2m_refine_worker_t *w, uint32_t t)
+{
+  const i2m_refine_t *r = w->r;
+  const tet_info_t *ti = tinfo(r->dt, t);
+  double z[3], d2;
+  uint32_t patch;
+  bool meets = ball_meets_interface(r, ti, z, &patch, &d2);
+  if (meets && !vgrid_has_within(&r->surf, r->dt, z, r->p.delta, patch)) return LEVEL_SURFACE;
+  for (uint32_t i = 0; i < 4; i++)
+    if (facet_bad(r, t, i)) return LEVEL_SURFACE;
+  if (meets && ti->r2 >= r->four_delta2 && in_box(r->dt, ti->cc)) return LEVEL_R2;
+  if (ti->label != 0 && in_box(r->dt, ti->cc) && volume_bad(r, t, ti)) return LEVEL_VOLUME;
+  return -1;
+}
+
+/* The surface centre of facet i of t: where the Voronoi edge between the two circumcentres
+ * crosses the interface; the seed is whichever of the two tets holds it in its circumball. */
+static bool facet_action(const i2m_refine_t *r, uint32_t t, uint32_t i, action_t *a)
+{
+  const i2m_dt_t *dt = r->dt;
+  uint32_t u = dt->tn[4 * t + i] >> 2;
+  const tet_info_t *ti = tinfo(dt, t), *tu = tinfo(dt, u);
+  if (!isfinite(ti->r2) || !isfinite(tu->r2)) return false;
+  int la, lb;
+  i2m_edt_bisect(r->img, ti->cc, tu->cc, r->bisect_tol, a->p, &la, &lb);
+  if (la == lb || !in_box(dt, a->p)) return false;
+  a->patch = patch_key(la, lb);
+  i2m_gidx_t none = INT64_MAX; /* a fresh point: its id is larger than every vertex's */
+  const uint32_t *candidates[2] = {dt->tv + 4 * (size_t)t, dt->tv + 4 * (size_t)u};
+  for (int k = 0; k < 2; k++) {
+    const uint32_t *v = candidates[k];
+    if (i2m_insphere_sos(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), a->p,
+                         i2m_dt_gid(dt, v[0]), i2m_dt_gid(dt, v[1]), i2m_dt_gid(dt, v[2]), i2m_dt_gid(dt, v[3]),
+                         none) > 0) {
+      a->seed = k == 0 ? t : u;
+      return true;
+    }
+  }
+  return false;
+}
+
+int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a)
+{
+  const i2m_refine_t *r = w->r;
+  const i2m_dt_t *dt = r->dt;
+  const tet_info_t *ti = tinfo(dt, t);
+  memset(a, 0, sizeof *a);
+  a->seed = t;
+  double z[3], d2;
+  uint32_t patch;
+  bool meets = ball_meets_interface(r, ti, z, &patch, &d2);
+  a->dist2 = d2;
+  if (meets && !vgrid_has_within(&r->surf, dt, z, r->p.delta, patch)) { /* R1 */
+    memcpy(a->p, z, sizeof z);
+    a->patch = patch;
+    a->kind = I2M_VK_SURFACE;
+    a->rule = 1;
+    return 1;
+  }
+  for (uint32_t i = 0; i < 4; i++) { /* R5, R6 */
+    int rule = facet_bad(r, t, i);
+    if (rule && facet_action(r, t, i, a)) {
+      a->kind = I2M_VK_SURFACE;
+      a->rule = rule;
+      return 1;
+    }
+  }
+  if (!in_box(dt, ti->cc)) return 0;
+  if ((meets && ti->r2 >= r->four_delta2) || (ti->label != 0 && volume_bad(r, t, ti))) { /* R2, R3, R4 */
+    memcpy(a->p, ti->cc, sizeof a->p);
+    a->kind = I2M_VK_FREE;
+    a->rule = (meets && ti->r2 >= r->four_delta2) ? 2 : volume_rule(r, ti);
+    return 1;
+  }
+  return 0;
+}

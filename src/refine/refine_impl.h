@@ -1,0 +1,120 @@
+/* Refine layer internals: the per-tet payload cached at creation, the bad-element lists, the
+ * surface-vertex grid (for R1's spacing test), and the per-thread worker. */
+#ifndef I2M_REFINE_IMPL_H
+#define I2M_REFINE_IMPL_H
+
+#include <math.h>
+#include <stdatomic.h>
+
+#include "i2m/geometry.h"
+#include "i2m/predicates.h"
+#include "i2m/refine.h"
+
+/** Payload of every tet (kernel tpay), computed when the tet is created. */
+typedef struct {
+  double cc[3];   /* circumcentre, grid frame */
+  double r2;      /* squared circumradius (INFINITY for a flat tet) */
+  uint16_t label; /* label index at the circumcentre */
+  uint16_t pad16;
+  uint32_t pad32;
+} tet_info_t;
+
+static inline tet_info_t *tinfo(const i2m_dt_t *dt, uint32_t t) { return (tet_info_t *)i2m_dt_payload(dt, t); }
+
+/** A bad element: a tet and its meta when recorded (stale once the tet changes). */
+typedef struct {
+  uint32_t t, meta;
+} bad_t;
+
+typedef struct {
+  bad_t *e;
+  size_t n, cap;
+} badlist_t;
+
+/** Priority levels: surface rules, R2, volume rules. */
+enum { LEVEL_SURFACE = 0, LEVEL_R2 = 1, LEVEL_VOLUME = 2, NLEVELS = 3 };
+
+/** What to do about a bad element. */
+typedef struct {
+  int rule;           /* 0: nothing; 1..6: the rule */
+  double dist2;       /* squared distance from p to the nearest interface */
+  double p[3];        /* the point to insert (grid frame) */
+  uint32_t seed;      /* a tet whose circumball holds p */
+  uint8_t kind;       /* I2M_VK_SURFACE or I2M_VK_FREE */
+  uint32_t patch;     /* surface points: the interface's label pair (patch_key) */
+} action_t;
+
+/** An interface patch: the unordered pair of label indices on its two sides. */
+static inline uint32_t patch_key(int a, int b) { return a < b ? ((uint32_t)a << 16 | (uint32_t)b) : ((uint32_t)b << 16 | (uint32_t)a); }
+
+/** A spatial hash of vertices: cells of side h, each a list through next[]; a tag per
+ *  vertex.  Used for the surface vertices (tag: the interface patch) and for the free
+ *  vertices close to an interface (R7's candidates). */
+typedef struct {
+  double h;           /* cell side */
+  double origin[3];   /* corner of cell (0,0,0) */
+  uint32_t nc[3];     /* cells along each axis (points outside are clamped into the border) */
+  uint32_t ncells;
+  uint32_t *head;     /* owned: [ncells] first vertex of each cell */
+  uint32_t *next;     /* owned: [cap_next] next vertex in the same cell */
+  uint32_t *tag;      /* owned: [cap_next] the vertex's tag */
+  uint32_t cap_next;
+} vgrid_t;
+
+struct i2m_refine_worker {
+  i2m_refine_t *r;      /* borrowed */
+  i2m_dt_ctx_t ctx;     /* kernel context */
+  badlist_t q[NLEVELS]; /* this worker's bad elements */
+  uint32_t *near;       /* R7: free vertices near a new surface vertex */
+  uint32_t nnear, cap_near;
+  uint32_t *created;    /* tets created by one operation (copied from ctx->newt) */
+  uint32_t ncreated, cap_created;
+  i2m_refine_stats_t st;
+  i2m_progress_t progress;
+};
+
+struct i2m_refine {
+  const i2m_image_t *img; /* borrowed */
+  const i2m_edt_t *edt;   /* borrowed */
+  i2m_refine_params_t p;  /* delta resolved; arrays borrowed from the caller */
+  double delta2;          /* delta^2 */
+  double four_delta2;     /* (2 delta)^2 */
+  double sin2_facet;      /* sin^2 of the facet angle bound */
+  double bisect_tol;      /* bisection tolerance (mm) */
+  double min_spacing;
+  double *label_size;     /* owned: [nlabels] size bound per label index (INFINITY: none) */
+  i2m_dt_t *dt;           /* owned */
+  vgrid_t surf;           /* surface vertices, tagged with their patch (R1) */
+  vgrid_t freev;          /* free vertices within 2 delta of an interface (R7) */
+  _Atomic int64_t next_gid;
+  i2m_refine_worker_t *workers; /* owned: [nworkers] */
+  int nworkers;
+};
+
+/* classify.c */
+void tet_info_compute(const i2m_refine_t *r, uint32_t t);
+int classify_level(i2m_refine_worker_t *w, uint32_t t);
+int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a);
+
+/* vgrid.c */
+/** A grid of cells of side about h over the box [lo, hi] (grown by one cell). */
+i2m_err_t vgrid_init(vgrid_t *g, const double lo[3], const double hi[3], double h);
+void vgrid_free(vgrid_t *g);
+i2m_err_t vgrid_insert(vgrid_t *g, const i2m_dt_t *dt, uint32_t v, uint32_t tag);
+void vgrid_remove(vgrid_t *g, const i2m_dt_t *dt, uint32_t v);
+/** Is there a vertex with this tag closer than rad to z? */
+bool vgrid_has_within(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], double rad, uint32_t tag);
+/** The vertices closer than rad to z into (*out)[0..*n). */
+i2m_err_t vgrid_collect_within(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], double rad, uint32_t **out,
+                               uint32_t *n, uint32_t *cap);
+
+/* worker.c */
+i2m_err_t worker_init(i2m_refine_worker_t *w, i2m_refine_t *r, uint32_t owner, bool locking);
+void worker_free(i2m_refine_worker_t *w);
+i2m_err_t worker_push(i2m_refine_worker_t *w, uint32_t t);
+i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, uint32_t n);
+/** Pops and treats one bad element.  Returns 1 when something was done or skipped, 0 when
+ *  the worker's lists are empty, <0 on error. */
+int worker_step(i2m_refine_worker_t *w);
+
+#endif

@@ -1,0 +1,142 @@
+/* Refine layer: a spatial hash of vertices (cells of side h, each a linked list through
+ * next[]), with a tag per vertex.  Two are used: the surface vertices tagged with the
+ * interface patch they sample (R1's spacing test) and the free vertices close to an
+ * interface (the candidates of R7's removals). */
+#include "refine_impl.h"
+
+#include <string.h>
+
+#define VGRID_MAX_CELLS (1u << 23)
+
+static uint32_t cell_axis(const vgrid_t *g, int a, double x)
+{
+  double u = floor((x - g->origin[a]) / g->h);
+  return u < 0 ? 0 : u >= (double)g->nc[a] ? g->nc[a] - 1 : (uint32_t)u;
+}
+
+static uint32_t cell_of(const vgrid_t *g, const double p[3])
+{
+  return (cell_axis(g, 2, p[2]) * g->nc[1] + cell_axis(g, 1, p[1])) * g->nc[0] + cell_axis(g, 0, p[0]);
+}
+
+i2m_err_t vgrid_init(vgrid_t *g, const double lo[3], const double hi[3], double h)
+{
+  memset(g, 0, sizeof *g);
+  for (;;) { /* cells of side h over [lo - h, hi + h], coarser if that makes too many */
+    uint64_t n = 1;
+    for (int a = 0; a < 3; a++) {
+      g->origin[a] = lo[a] - h;
+      g->nc[a] = (uint32_t)ceil((hi[a] - lo[a] + 2 * h) / h);
+      if (g->nc[a] < 1) g->nc[a] = 1;
+      n *= g->nc[a];
+    }
+    if (n <= VGRID_MAX_CELLS) {
+      g->h = h;
+      g->ncells = (uint32_t)n;
+      break;
+    }
+    h *= 1.26;
+  }
+  I2M_CALL(i2m_malloc(g->ncells, sizeof *g->head, &g->head));
+  for (uint32_t c = 0; c < g->ncells; c++) g->head[c] = I2M_DT_NONE;
+  return I2M_OK;
+}
+
+void vgrid_free(vgrid_t *g)
+{
+  i2m_free(&g->head);
+  i2m_free(&g->next);
+  i2m_free(&g->tag);
+  memset(g, 0, sizeof *g);
+}
+
+i2m_err_t vgrid_insert(vgrid_t *g, const i2m_dt_t *dt, uint32_t v, uint32_t tag)
+{
+  if (v >= g->cap_next) {
+    uint32_t cap = dt->cap_v > v ? dt->cap_v : v + 1;
+    I2M_CALL(i2m_realloc(cap, sizeof *g->next, &g->next));
+    I2M_CALL(i2m_realloc(cap, sizeof *g->tag, &g->tag));
+    g->cap_next = cap;
+  }
+  uint32_t c = cell_of(g, i2m_dt_xyz(dt, v));
+  g->tag[v] = tag;
+  g->next[v] = g->head[c];
+  g->head[c] = v;
+  return I2M_OK;
+}
+
+void vgrid_remove(vgrid_t *g, const i2m_dt_t *dt, uint32_t v)
+{
+  uint32_t c = cell_of(g, i2m_dt_xyz(dt, v));
+  for (uint32_t *link = &g->head[c]; *link != I2M_DT_NONE; link = &g->next[*link])
+    if (*link == v) {
+      *link = g->next[v];
+      return;
+    }
+}
+
+/* Calls fn(arg, v) for every vertex of the cells that meet the box [z - rad, z + rad] whose
+ * distance to z is below rad; stops early when fn returns true.  Returns true if it did. */
+static bool vgrid_scan(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], double rad,
+                       bool (*fn)(void *, uint32_t), void *arg)
+{
+  uint32_t c0[3], c1[3];
+  for (int a = 0; a < 3; a++) {
+    c0[a] = cell_axis(g, a, z[a] - rad);
+    c1[a] = cell_axis(g, a, z[a] + rad);
+  }
+  double r2 = rad * rad;
+  for (uint32_t k = c0[2]; k <= c1[2]; k++)
+    for (uint32_t j = c0[1]; j <= c1[1]; j++)
+      for (uint32_t i = c0[0]; i <= c1[0]; i++)
+        for (uint32_t v = g->head[(k * g->nc[1] + j) * g->nc[0] + i]; v != I2M_DT_NONE; v = g->next[v])
+          if (i2m_dist2(i2m_dt_xyz(dt, v), z) < r2 && fn(arg, v)) return true;
+  return false;
+}
+
+typedef struct {
+  const vgrid_t *g;
+  uint32_t tag;
+} tag_match_t;
+
+static bool has_tag(void *arg, uint32_t v)
+{
+  const tag_match_t *m = arg;
+  return m->g->tag[v] == m->tag;
+}
+
+bool vgrid_has_within(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], double rad, uint32_t tag)
+{
+  tag_match_t m = {g, tag};
+  return vgrid_scan(g, dt, z, rad, has_tag, &m);
+}
+
+typedef struct {
+  uint32_t **out, *n, *cap;
+  bool failed;
+} collect_t;
+
+static bool collect_one(void *arg, uint32_t v)
+{
+  collect_t *c = arg;
+  if (*c->n == *c->cap) {
+    uint32_t cap = *c->cap ? 2 * *c->cap : 64;
+    if (i2m_realloc(cap, sizeof **c->out, c->out) != I2M_OK) {
+      c->failed = true;
+      return true;
+    }
+    *c->cap = cap;
+  }
+  (*c->out)[(*c->n)++] = v;
+  return false;
+}
+
+i2m_err_t vgrid_collect_within(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], double rad, uint32_t **out,
+                               uint32_t *n, uint32_t *cap)
+{
+  collect_t c = {out, n, cap, false};
+  *n = 0;
+  vgrid_scan(g, dt, z, rad, collect_one, &c);
+  I2M_CHECK(!c.failed, I2M_ERR_MEMORY, "out of memory collecting vertices near a surface point");
+  return I2M_OK;
+}

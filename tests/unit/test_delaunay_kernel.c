@@ -1,0 +1,325 @@
+/* Unit tests of the Delaunay kernel (layer 3): validity and the empty-sphere property on
+ * random, lattice (fully cospherical), spherical and near-degenerate point sets; the same
+ * tetrahedralization whatever the insertion order; removal of random subsets giving exactly
+ * the tetrahedralization of what remains; duplicates refused. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "i2m/dt.h"
+#include "i2m/predicates.h"
+#include "test_util.h"
+
+#ifdef I2M_DEBUG /* sanitizer and debug builds: smaller sets, same properties */
+#define N_RANDOM 60000
+#define LATTICE 16
+#else
+#define N_RANDOM 1000000
+#define LATTICE 40
+#endif
+
+static uint64_t rng_state = 88172645463325252ull;
+static double urand(void)
+{
+  rng_state ^= rng_state << 13;
+  rng_state ^= rng_state >> 7;
+  rng_state ^= rng_state << 17;
+  return (double)(rng_state >> 11) * (1.0 / 9007199254740992.0);
+}
+
+static i2m_dt_t *make_dt(double lo, double hi, uint32_t nv)
+{
+  double L[3] = {lo, lo, lo}, H[3] = {hi, hi, hi};
+  i2m_dt_t *dt = NULL;
+  CU_ASSERT_FATAL(i2m_dt_create(L, H, nv, 0, &dt) == I2M_OK);
+  return dt;
+}
+
+static void assert_valid(const i2m_dt_t *dt)
+{
+  i2m_err_t err = i2m_dt_check(dt, true);
+  if (err != I2M_OK) fprintf(stderr, "check failed: %s\n", i2m_error_message());
+  CU_ASSERT_EQUAL_FATAL(err, I2M_OK);
+}
+
+/* Inserts points one by one in the given order with explicit global ids (no BRIO). */
+static void insert_in_order(i2m_dt_t *dt, const double *xyz, const int64_t *gid, const uint32_t *order, size_t n)
+{
+  i2m_dt_ctx_t ctx;
+  CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
+  uint32_t hint = 0, v;
+  while (!i2m_dt_alive(dt, hint)) hint++;
+  for (size_t r = 0; r < n; r++) {
+    uint32_t k = order ? order[r] : (uint32_t)r;
+    i2m_dt_status_t st = i2m_dt_insert_walk(&ctx, xyz + 3 * k, gid[k], I2M_VK_FREE, hint, &v);
+    CU_ASSERT_EQUAL_FATAL(st, I2M_DT_OK);
+    hint = ctx.newt[0];
+  }
+  i2m_dt_ctx_free(&ctx);
+}
+
+static void test_random_points(void)
+{
+  size_t n = N_RANDOM;
+  double *xyz = malloc(3 * n * sizeof *xyz);
+  for (size_t i = 0; i < 3 * n; i++) xyz[i] = urand();
+  i2m_dt_t *dt = make_dt(-3, 4, (uint32_t)n);
+  int64_t ndup = -1;
+  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, 1, NULL, &ndup) == I2M_OK);
+  CU_ASSERT_EQUAL(ndup, 0);
+  assert_valid(dt);
+  int64_t nt = i2m_dt_count_tets(dt);
+  CU_ASSERT(nt > 6 * (int64_t)n && nt < 7 * (int64_t)n); /* about 6.7 tets per point */
+  i2m_dt_destroy(&dt);
+  free(xyz);
+}
+
+static double *lattice_points(int m, double h, size_t *n)
+{
+  *n = (size_t)m * m * m;
+  double *xyz = malloc(3 * *n * sizeof *xyz);
+  size_t k = 0;
+  for (int i = 0; i < m; i++)
+    for (int j = 0; j < m; j++)
+      for (int l = 0; l < m; l++) {
+        xyz[3 * k] = i * h;
+        xyz[3 * k + 1] = j * h;
+        xyz[3 * k + 2] = l * h;
+        k++;
+      }
+  return xyz;
+}
+
+/* A lattice: every unit cube's 8 corners are cospherical; only the perturbation decides. */
+static void test_lattice_order_independent(void)
+{
+  size_t n;
+  double *xyz = lattice_points(LATTICE, 1.0, &n);
+  uint64_t sums[3];
+  int64_t counts[3];
+  for (int run = 0; run < 3; run++) {
+    i2m_dt_t *dt = make_dt(-64, 128, (uint32_t)n);
+    CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, 1000 + (uint64_t)run, NULL, NULL) == I2M_OK);
+    if (run == 0) assert_valid(dt);
+    sums[run] = i2m_dt_checksum(dt, &counts[run]);
+    i2m_dt_destroy(&dt);
+  }
+  /* and a plain sequential order (no sorting), reversed */
+  int64_t *gid = malloc(n * sizeof *gid);
+  uint32_t *order = malloc(n * sizeof *order);
+  for (size_t i = 0; i < n; i++) {
+    gid[i] = 8 + (int64_t)i;
+    order[i] = (uint32_t)(n - 1 - i);
+  }
+  i2m_dt_t *dt = make_dt(-64, 128, (uint32_t)n);
+  insert_in_order(dt, xyz, gid, order, n);
+  assert_valid(dt);
+  int64_t c4;
+  uint64_t s4 = i2m_dt_checksum(dt, &c4);
+  i2m_dt_destroy(&dt);
+  CU_ASSERT_EQUAL(sums[0], sums[1]);
+  CU_ASSERT_EQUAL(sums[0], sums[2]);
+  CU_ASSERT_EQUAL(sums[0], s4);
+  CU_ASSERT_EQUAL(counts[0], counts[1]);
+  CU_ASSERT_EQUAL(counts[0], c4);
+  free(gid);
+  free(order);
+  free(xyz);
+}
+
+/* Random points in the same set, inserted in three orders: identical tetrahedralizations. */
+static void test_random_order_independent(void)
+{
+  size_t n = N_RANDOM / 10;
+  double *xyz = malloc(3 * n * sizeof *xyz);
+  for (size_t i = 0; i < 3 * n; i++) xyz[i] = urand();
+  uint64_t s[3];
+  for (int run = 0; run < 3; run++) {
+    i2m_dt_t *dt = make_dt(-3, 4, (uint32_t)n);
+    CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, 77 + (uint64_t)run * 1000, NULL, NULL) == I2M_OK);
+    s[run] = i2m_dt_checksum(dt, NULL);
+    i2m_dt_destroy(&dt);
+  }
+  CU_ASSERT_EQUAL(s[0], s[1]);
+  CU_ASSERT_EQUAL(s[0], s[2]);
+  free(xyz);
+}
+
+/* Points exactly on a sphere (integer points with x^2+y^2+z^2 = R^2) plus random points on
+ * a sphere: massively cospherical. */
+static void test_sphere_points(void)
+{
+  const int R = 65; /* 65^2 = 4225 has many representations as a sum of three squares */
+  size_t cap = 20000, n = 0;
+  double *xyz = malloc(3 * cap * sizeof *xyz);
+  for (int x = -R; x <= R; x++)
+    for (int y = -R; y <= R; y++) {
+      int z2 = R * R - x * x - y * y;
+      if (z2 < 0) continue;
+      int z = (int)lround(sqrt((double)z2));
+      if (z * z != z2) continue;
+      for (int sgn = -1; sgn <= 1; sgn += 2) {
+        if (z == 0 && sgn > 0) continue;
+        xyz[3 * n] = x;
+        xyz[3 * n + 1] = y;
+        xyz[3 * n + 2] = sgn * z;
+        n++;
+      }
+    }
+  size_t nexact = n;
+  while (n < 6000) { /* random directions, rounded: near-cospherical */
+    double u = 2 * urand() - 1, phi = 2 * I2M_PI * urand(), s = sqrt(1 - u * u);
+    xyz[3 * n] = 30 * s * cos(phi);
+    xyz[3 * n + 1] = 30 * s * sin(phi);
+    xyz[3 * n + 2] = 30 * u;
+    n++;
+  }
+  CU_ASSERT(nexact > 100);
+  i2m_dt_t *dt = make_dt(-200, 200, (uint32_t)n);
+  int64_t ndup;
+  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, 5, NULL, &ndup) == I2M_OK);
+  CU_ASSERT_EQUAL(ndup, 0);
+  assert_valid(dt);
+  i2m_dt_destroy(&dt);
+  free(xyz);
+}
+
+/* A grid perturbed by 1e-12: nearly degenerate everywhere. */
+static void test_perturbed_grid(void)
+{
+  size_t n;
+  double *xyz = lattice_points(LATTICE / 2, 1.0, &n);
+  for (size_t i = 0; i < 3 * n; i++) xyz[i] += 1e-12 * (2 * urand() - 1);
+  i2m_dt_t *dt = make_dt(-64, 128, (uint32_t)n);
+  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, 9, NULL, NULL) == I2M_OK);
+  assert_valid(dt);
+  i2m_dt_destroy(&dt);
+  free(xyz);
+}
+
+/* Insert a set, remove a random subset; the result must be valid, Delaunay, and identical
+ * (checksum) to the tetrahedralization of the remaining points built from scratch. */
+static void removal_case(double *xyz, size_t n, double frac, uint64_t seed)
+{
+  int64_t *gid = malloc(n * sizeof *gid);
+  uint32_t *vid = malloc(n * sizeof *vid);
+  for (size_t i = 0; i < n; i++) gid[i] = 8 + (int64_t)i;
+  i2m_dt_t *dt = make_dt(-64, 128, (uint32_t)n);
+  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, seed, vid, NULL) == I2M_OK);
+  i2m_dt_ctx_t ctx;
+  CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
+  char *removed = calloc(n, 1);
+  size_t nremoved = 0;
+  rng_state ^= seed * 0x9E3779B97F4A7C15ull;
+  for (size_t i = 0; i < n; i++) {
+    if (urand() >= frac) continue;
+    i2m_dt_status_t st = i2m_dt_remove(&ctx, vid[i]);
+    CU_ASSERT_EQUAL_FATAL(st, I2M_DT_OK);
+    removed[i] = 1;
+    nremoved++;
+  }
+  CU_ASSERT(nremoved > 0);
+  /* removing a dead vertex or a box corner changes nothing */
+  for (size_t i = 0; i < n; i++)
+    if (removed[i]) {
+      CU_ASSERT_EQUAL(i2m_dt_remove(&ctx, vid[i]), I2M_DT_STALE);
+      break;
+    }
+  CU_ASSERT_EQUAL(i2m_dt_remove(&ctx, 3), I2M_DT_STALE);
+  i2m_dt_ctx_free(&ctx);
+  assert_valid(dt);
+  int64_t c1, c2;
+  uint64_t s1 = i2m_dt_checksum(dt, &c1);
+  i2m_dt_destroy(&dt);
+
+  double *rest = malloc(3 * n * sizeof *rest);
+  int64_t *rgid = malloc(n * sizeof *rgid);
+  size_t m = 0;
+  for (size_t i = 0; i < n; i++)
+    if (!removed[i]) {
+      memcpy(rest + 3 * m, xyz + 3 * i, 3 * sizeof *rest);
+      rgid[m++] = gid[i];
+    }
+  dt = make_dt(-64, 128, (uint32_t)m);
+  insert_in_order(dt, rest, rgid, NULL, m);
+  uint64_t s2 = i2m_dt_checksum(dt, &c2);
+  i2m_dt_destroy(&dt);
+  CU_ASSERT_EQUAL(c1, c2);
+  CU_ASSERT_EQUAL(s1, s2);
+  free(rest);
+  free(rgid);
+  free(removed);
+  free(gid);
+  free(vid);
+}
+
+static void test_remove_random(void)
+{
+  size_t n = N_RANDOM / 20;
+  double *xyz = malloc(3 * n * sizeof *xyz);
+  for (size_t i = 0; i < 3 * n; i++) xyz[i] = 10 * urand();
+  removal_case(xyz, n, 0.3, 11);
+  free(xyz);
+}
+
+static void test_remove_lattice(void)
+{
+  size_t n;
+  double *xyz = lattice_points(LATTICE / 3, 1.0, &n);
+  removal_case(xyz, n, 0.5, 12);
+  free(xyz);
+}
+
+static void test_remove_everything(void)
+{
+  size_t n = 500;
+  double *xyz = malloc(3 * n * sizeof *xyz);
+  for (size_t i = 0; i < 3 * n; i++) xyz[i] = 20 * urand();
+  removal_case(xyz, n, 1.1, 13); /* all points: back to the empty box */
+  free(xyz);
+}
+
+static void test_duplicates(void)
+{
+  double xyz[3 * 6] = {1, 1, 1, 2, 1, 1, 1, 2, 1, 1, 1, 2, 2, 1, 1, 1, 1, 1};
+  i2m_dt_t *dt = make_dt(-10, 10, 8);
+  int64_t ndup = 0;
+  uint32_t vid[6];
+  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, 6, 8, 3, vid, &ndup) == I2M_OK);
+  CU_ASSERT_EQUAL(ndup, 2);
+  int dead = 0;
+  for (int i = 0; i < 6; i++) dead += vid[i] == I2M_DT_NONE;
+  CU_ASSERT_EQUAL(dead, 2);
+  assert_valid(dt);
+  i2m_dt_destroy(&dt);
+}
+
+/* The empty box: 8 cospherical corners give 5 or 6 positive tets filling the box. */
+static void test_box(void)
+{
+  i2m_dt_t *dt = make_dt(-1, 2, 0);
+  assert_valid(dt);
+  int64_t n = i2m_dt_count_tets(dt);
+  CU_ASSERT(n == 5 || n == 6);
+  double vol = 0;
+  for (uint32_t t = 0; t < i2m_dt_ntets_slots(dt); t++) {
+    const uint32_t *v = dt->tv + 4 * t;
+    vol += i2m_orient3d_fast(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3])) / 6;
+  }
+  CU_ASSERT_DOUBLE_EQUAL(vol, 27.0, 1e-12);
+  i2m_dt_destroy(&dt);
+}
+
+static const test_case_t cases[] = {
+    {"virtual box", test_box},
+    {"duplicates refused", test_duplicates},
+    {"random points valid and Delaunay", test_random_points},
+    {"random points: order-independent", test_random_order_independent},
+    {"lattice (cospherical): order-independent", test_lattice_order_independent},
+    {"points on a sphere", test_sphere_points},
+    {"1e-12-perturbed grid", test_perturbed_grid},
+    {"remove random subset of random points", test_remove_random},
+    {"remove random subset of a lattice", test_remove_lattice},
+    {"remove every point", test_remove_everything},
+};
+TEST_MAIN("delaunay kernel", cases)

@@ -1,0 +1,202 @@
+/* i2m-check (tools/check): an independent checker of written meshes.  It reads a mesh file
+ * (VTU, Medit, Gmsh 4.1), recomputes validity, quality and, with the image, fidelity, with
+ * its own geometry code (it never uses src/geom or src/delaunay: it must not share a bug with
+ * the mesher).  From libi2m it uses only the base utilities and the image reader.
+ *
+ * Files: read_mesh.c (the three formats), ck_geom.c (exact orientation, distances,
+ * angles), validity.c (indices, orientation, face matching, vertices, interface triangles),
+ * quality.c, fidelity.c (image interfaces, two-sided distances, volumes, components),
+ * plot.c (SVG), report.c (text and JSON), check_main.c (options, thresholds, exit code). */
+#ifndef I2M_CHECK_H
+#define I2M_CHECK_H
+
+#include "i2m/base.h"
+#include "i2m/image.h"
+
+#include <stdio.h>
+
+#define CK_PI 3.14159265358979323846
+
+/* ---- the mesh as read from the file ---- */
+typedef struct {
+  char format[8];     /* "vtu", "medit", "gmsh" */
+  int64_t nv;
+  double *xyz;        /* owned: [nv][3] world coordinates */
+  int64_t nt;
+  int64_t *tet;       /* owned: [nt][4] 0-based vertex ids as found (may be out of range) */
+  int64_t *tet_label; /* owned: [nt] material */
+  int has_tri;        /* the file has interface triangles (Medit, Gmsh) */
+  int tri_labels_known; /* every file triangle's label pair is known */
+  int64_t ntri;
+  int64_t *tri;       /* owned: [ntri][3] 0-based vertex ids */
+  int64_t *tri_label; /* owned: [ntri][2] label pair (a <= b), valid if tri_labels_known */
+  int64_t ignored_cells; /* cells of other kinds skipped by the reader */
+} ck_mesh_t;
+
+/** Reads a mesh file (format by extension, .vtu .mesh .msh).  On error the message names the
+ *  file and the problem; *m is left empty. */
+i2m_err_t ck_mesh_read(const char *path, ck_mesh_t *m);
+void ck_mesh_free(ck_mesh_t *m);
+
+/* ---- interface triangles derived from the tetrahedra ---- */
+typedef struct {
+  int64_t n;
+  int32_t *v;   /* owned: [n][3] vertices, normal pointing from lab[2i] to lab[2i+1] */
+  int64_t *lab; /* owned: [n][2] label pair, lab[2i] < lab[2i+1]; 0 = outside the mesh */
+} ck_iface_t;
+
+/* ---- validity ---- */
+typedef struct {
+  int valid;
+  int64_t bad_index, first_bad_index;   /* tets with a vertex id out of range */
+  int64_t tri_bad_index;                /* file triangles with an id out of range */
+  int64_t nonfinite, first_nonfinite;   /* vertices with a NaN or infinite coordinate */
+  int64_t inverted, first_inverted;     /* exact negative orientation */
+  int64_t degenerate, first_degenerate; /* exact zero volume */
+  double min_volume, total_volume;
+  int64_t min_volume_tet;
+  int64_t interior_faces, boundary_faces;
+  int64_t nonmanifold_faces, first_nonmanifold_tet; /* faces of 3+ tets */
+  int64_t overlapping_faces, first_overlapping_tet; /* two positive tets on one side */
+  int64_t dangling, first_dangling;
+  int64_t duplicate, first_duplicate, first_duplicate_of;
+  int64_t boundary_edges, boundary_open_edges;
+  int64_t interface_triangles, interface_pairs;
+  /* comparison of the file's triangles with the derived ones */
+  int64_t file_triangles, file_not_interface, interface_not_in_file, file_label_mismatch,
+      file_duplicate, file_flipped;
+  char errors[512]; /* comma-separated defect names */
+} ck_validity_t;
+
+/* Results of validity needed later (owned; freed with ck_topo_free). */
+typedef struct {
+  int64_t *nb;        /* [nt][4] 4*t'+f' across the face opposite vertex f; -1 boundary;
+                         -2 face of 3+ tets */
+  double *vol;        /* [nt] signed volume */
+  ck_iface_t iface;
+} ck_topo_t;
+
+i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo);
+void ck_topo_free(ck_topo_t *t);
+
+/* ---- quality ---- */
+#define CK_HIST_BINS 180
+typedef struct {
+  double min_dihedral, max_dihedral; /* degrees */
+  int64_t min_dihedral_tet, max_dihedral_tet;
+  int64_t dihedral_hist[CK_HIST_BINS];
+  int64_t dihedral_below[3]; /* tets with a dihedral angle < 5, 10, 20 degrees */
+  double max_ratio;          /* circumradius / shortest edge */
+  int64_t max_ratio_tet;
+  double ratio_p50, ratio_p90, ratio_p99, ratio_p999, ratio_mean;
+  double ratio_bound;        /* bound used for the count below */
+  int64_t ratio_above_bound, ratio_above_2;
+  double min_planar_angle;   /* degrees, over interface triangles */
+  int64_t min_planar_tri;
+  double facet_angle_bound;
+  int64_t planar_below_bound, planar_below_30;
+  int64_t ntri;
+} ck_quality_t;
+
+i2m_err_t ck_quality(const ck_mesh_t *m, const ck_topo_t *topo, double ratio_bound,
+                     double facet_bound, ck_quality_t *q);
+
+/* ---- fidelity ---- */
+typedef struct {
+  int64_t value;          /* original label value */
+  int64_t voxels;         /* image voxel count */
+  double image_volume, mesh_volume, rel_error_pct;
+  int64_t tets;
+  int64_t image_components, image_components_100, largest_component;
+  int64_t mesh_components;
+  int in_image, in_mesh;
+} ck_label_t;
+
+typedef struct {
+  double max, p99, mean;   /* mm */
+  int64_t count;
+  double where[3];         /* world position of the max */
+} ck_dist_t;
+
+typedef struct {
+  double min_spacing, sample_spacing;
+  int64_t image_faces, mesh_samples;
+  ck_dist_t mesh_to_image, image_to_mesh, two_sided;
+  int64_t worst_pair[2];       /* label values on the two sides of the worst image face */
+  int64_t worst_component[2];  /* voxel counts of their 6-connected components (0: outside) */
+  int nlabels;
+  ck_label_t *labels;          /* owned: [nlabels] union of image and mesh labels (no 0) */
+  int64_t missing_labels;      /* image labels absent from the mesh */
+  int64_t extra_labels;        /* mesh labels absent from the image */
+  int64_t image_components_total;
+  double t_mesh_to_image, t_image_to_mesh, t_components; /* seconds */
+} ck_fidelity_t;
+
+i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image_t *img,
+                      ck_fidelity_t *f);
+void ck_fidelity_free(ck_fidelity_t *f);
+/** Mesh components per label (tets of one label sharing faces): comp[t] (owned) component
+ *  id; *ncomp number of components. */
+i2m_err_t ck_mesh_components(const ck_mesh_t *m, const ck_topo_t *topo, int64_t **comp,
+                             int64_t *ncomp);
+
+/* ---- plots ---- */
+i2m_err_t ck_plot(const char *dir, const ck_mesh_t *m, const ck_quality_t *q,
+                  const i2m_image_t *img, const char *image_path);
+
+/* ---- geometry (ck_geom.c) ---- */
+/** Exact sign of det[b-a; c-a; d-a]. */
+int ck_orient3d(const double a[3], const double b[3], const double c[3], const double d[3]);
+double ck_volume6(const double a[3], const double b[3], const double c[3], const double d[3]);
+/** Squared distance from p to triangle abc. */
+double ck_dist2_point_triangle(const double p[3], const double a[3], const double b[3],
+                               const double c[3]);
+/** Smallest planar angle of triangle abc in degrees. */
+double ck_min_angle_deg(const double a[3], const double b[3], const double c[3]);
+/** Value with nearest rank q (0..1) of a[0..n-1]; reorders a. */
+double ck_percentile(double *a, int64_t n, double q);
+
+/* ---- helpers ---- */
+static inline int64_t ck_uf_find(int64_t *par, int64_t x)
+{
+  while (par[x] != x) {
+    par[x] = par[par[x]];
+    x = par[x];
+  }
+  return x;
+}
+static inline void ck_uf_union(int64_t *par, int64_t a, int64_t b)
+{
+  a = ck_uf_find(par, a);
+  b = ck_uf_find(par, b);
+  if (a != b) {
+    if (a < b)
+      par[b] = a;
+    else
+      par[a] = b;
+  }
+}
+
+
+/* ---- everything one run computed, for the reports ---- */
+#define CK_MAX_VIOL 32
+typedef struct {
+  const char *mesh_path, *image_path; /* borrowed */
+  const ck_mesh_t *mesh;              /* borrowed */
+  const i2m_image_t *img;             /* borrowed, may be NULL */
+  ck_validity_t validity;
+  int have_quality, have_fidelity;
+  ck_quality_t quality;
+  ck_fidelity_t fidelity;
+  /* thresholds (NAN / -1 when not given) */
+  double max_ratio, min_facet_angle, facet_exceptions, max_hausdorff, max_volume_error;
+  int64_t volume_min_voxels, require_labels;
+  int nviol;
+  char viol[CK_MAX_VIOL][256];
+  double t_read, t_validity, t_quality, t_fidelity, t_total;
+} ck_result_t;
+
+void ck_report_text(FILE *f, const ck_result_t *r);
+void ck_report_json(FILE *f, const ck_result_t *r);
+
+#endif

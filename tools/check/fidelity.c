@@ -1,0 +1,759 @@
+/* i2m-check: fidelity of a mesh to its label image.  Everything is computed in the image's
+ * grid frame (mm, axis-aligned; mesh vertices mapped with i2m_image_world_to_grid).
+ *   image interfaces: the voxel faces between two different labels, including the faces
+ *     between a non-zero voxel and the outside of the image;
+ *   mesh -> image: every interface triangle sampled on a barycentric grid of spacing
+ *     <= min voxel spacing / 2 (vertices and edge midpoints included), each sample's exact
+ *     distance to the nearest image interface face (point-to-square);
+ *   image -> mesh: every image interface face, the largest of the exact distances from its
+ *     centre and its four corners to the nearest mesh interface triangle;
+ *   per-label volumes and 6-connected components of the image (run-length union-find) and
+ *     of the mesh (tetrahedra of one label sharing faces).
+ * Nearest queries use a uniform grid of buckets, searched in a box of growing radius that
+ * starts from an upper bound (the previous query's distance plus the step between the two
+ * query points), so that each query looks at a few buckets only. */
+#include "check.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifdef _OPENMP
+#define CK_OMP(x) _Pragma(x)
+#else
+#define CK_OMP(x)
+#endif
+
+/* ---- a uniform grid of buckets over items with bounding boxes ---- */
+typedef struct {
+  double lo[3], h[3];
+  int64_t n[3];
+  int64_t *start; /* owned: [cells+1] */
+  int64_t *item;  /* owned: items of each cell */
+  int64_t nitems;
+} grid_t;
+
+typedef void (*bbox_fn)(const void *ctx, int64_t i, double lo[3], double hi[3]);
+typedef double (*dist_fn)(const void *ctx, int64_t i, const double p[3]);
+
+static int64_t cell_of(const grid_t *g, int a, double x)
+{
+  double u = floor((x - g->lo[a]) / g->h[a]);
+  if (!(u >= 0)) return 0;
+  if (u >= (double)g->n[a]) return g->n[a] - 1;
+  return (int64_t)u;
+}
+
+static i2m_err_t grid_build(grid_t *g, int64_t nitems, bbox_fn bbox, const void *ctx)
+{
+  int64_t ncell = g->n[0] * g->n[1] * g->n[2];
+  g->nitems = nitems;
+  I2M_CALL(i2m_calloc((size_t)ncell + 1, sizeof *g->start, &g->start));
+  for (int pass = 0; pass < 2; pass++) {
+    if (pass == 1) {
+      for (int64_t c = 0; c < ncell; c++) g->start[c + 1] += g->start[c];
+      I2M_CALL(i2m_malloc((size_t)g->start[ncell], sizeof *g->item, &g->item));
+    }
+    for (int64_t i = 0; i < nitems; i++) {
+      double lo[3], hi[3];
+      int64_t c0[3], c1[3];
+      bbox(ctx, i, lo, hi);
+      for (int a = 0; a < 3; a++) {
+        c0[a] = cell_of(g, a, lo[a]);
+        c1[a] = cell_of(g, a, hi[a]);
+      }
+      for (int64_t z = c0[2]; z <= c1[2]; z++)
+        for (int64_t y = c0[1]; y <= c1[1]; y++)
+          for (int64_t x = c0[0]; x <= c1[0]; x++) {
+            int64_t c = (z * g->n[1] + y) * g->n[0] + x;
+            if (pass == 0)
+              g->start[c + 1]++;
+            else
+              g->item[g->start[c]++] = i;
+          }
+    }
+    if (pass == 1) { /* restore starts */
+      for (int64_t c = ncell; c > 0; c--) g->start[c] = g->start[c - 1];
+      g->start[0] = 0;
+    }
+  }
+  return I2M_OK;
+}
+
+static void grid_free(grid_t *g)
+{
+  i2m_free(&g->start);
+  i2m_free(&g->item);
+}
+
+static inline double gap(double lo, double hi, double x)
+{
+  return x < lo ? lo - x : x > hi ? x - hi : 0.0;
+}
+
+/* Exact distance from p to the nearest item, given an upper bound ub (INFINITY if none).
+ * The searched box grows from one cell by doubling until it holds the answer; ub only
+ * prunes (a far ub never makes the box large). */
+static double grid_nearest(const grid_t *g, const double p[3], double ub, dist_fn dist,
+                           const void *ctx, int64_t *hint)
+{
+  if (g->nitems == 0) return INFINITY;
+  double best2 = isfinite(ub) ? ub * ub * (1 + 1e-12) + 1e-300 : INFINITY;
+  if (hint && *hint >= 0) { /* the previous query's nearest item: usually a tight bound */
+    double d2 = dist(ctx, *hint, p);
+    if (d2 < best2) {
+      best2 = d2;
+      ub = sqrt(d2);
+    }
+  }
+  double r = g->h[0] > g->h[1] ? g->h[0] : g->h[1];
+  r = r > g->h[2] ? r : g->h[2];
+  if (ub < r) r = ub * (1 + 1e-12) + 1e-300; /* a tight bound: one pass */
+  for (;;) {
+    int64_t c0[3], c1[3];
+    int all = 1;
+    for (int a = 0; a < 3; a++) {
+      c0[a] = cell_of(g, a, p[a] - r);
+      c1[a] = cell_of(g, a, p[a] + r);
+      all &= p[a] - r <= g->lo[a] && p[a] + r >= g->lo[a] + (double)g->n[a] * g->h[a];
+    }
+    for (int64_t z = c0[2]; z <= c1[2]; z++) {
+      double dz = gap(g->lo[2] + (double)z * g->h[2], g->lo[2] + (double)(z + 1) * g->h[2], p[2]);
+      if (dz * dz >= best2) continue;
+      for (int64_t y = c0[1]; y <= c1[1]; y++) {
+        double dy = gap(g->lo[1] + (double)y * g->h[1], g->lo[1] + (double)(y + 1) * g->h[1], p[1]);
+        double dzy = dz * dz + dy * dy;
+        if (dzy >= best2) continue;
+        const int64_t *st = g->start + (z * g->n[1] + y) * g->n[0];
+        for (int64_t x = c0[0]; x <= c1[0]; x++) {
+          if (st[x] == st[x + 1]) continue;
+          double dx = gap(g->lo[0] + (double)x * g->h[0], g->lo[0] + (double)(x + 1) * g->h[0], p[0]);
+          /* the grid covers every item, so the cell box bounds its items' distances */
+          if (dzy + dx * dx >= best2) continue;
+          for (int64_t k = st[x]; k < st[x + 1]; k++) {
+            double d2 = dist(ctx, g->item[k], p);
+            if (d2 < best2) {
+              best2 = d2;
+              if (hint) *hint = g->item[k];
+            }
+          }
+        }
+      }
+    }
+    if (best2 <= r * r || all) break;
+    r *= 2;
+  }
+  return sqrt(best2);
+}
+
+/* ---- image interface faces ---- */
+typedef struct {
+  int32_t c[3]; /* lower voxel (may be -1 on the axis) */
+  int32_t axis;
+} vface_t;
+
+typedef struct {
+  const i2m_image_t *img;
+  const vface_t *f;
+  double *box; /* owned: [nf][6] lo, hi of every face */
+} fctx_t;
+
+static void face_box(const fctx_t *x, int64_t i, double lo[3], double hi[3])
+{
+  const vface_t *f = x->f + i;
+  for (int a = 0; a < 3; a++) {
+    double s = x->img->spacing[a];
+    if (a == f->axis) {
+      lo[a] = hi[a] = (f->c[a] + 0.5) * s;
+    } else {
+      lo[a] = (f->c[a] - 0.5) * s;
+      hi[a] = (f->c[a] + 0.5) * s;
+    }
+  }
+}
+
+static void face_bbox(const void *ctx, int64_t i, double lo[3], double hi[3])
+{
+  face_box(ctx, i, lo, hi);
+}
+
+static double face_dist2(const void *ctx, int64_t i, const double p[3])
+{
+  const double *b = ((const fctx_t *)ctx)->box + 6 * i;
+  double dx = gap(b[0], b[3], p[0]), dy = gap(b[1], b[4], p[1]), dz = gap(b[2], b[5], p[2]);
+  return dx * dx + dy * dy + dz * dz;
+}
+
+static i2m_err_t image_faces(const i2m_image_t *img, vface_t **out, int64_t *nout)
+{
+  int64_t n = 0;
+  *out = NULL;
+  for (int pass = 0; pass < 2; pass++) {
+    if (pass == 1) I2M_CALL(i2m_malloc((size_t)n, sizeof **out, out));
+    n = 0;
+    for (int64_t k = -1; k < img->n[2]; k++)
+      for (int64_t j = -1; j < img->n[1]; j++)
+        for (int64_t i = -1; i < img->n[0]; i++) {
+          int l0 = i2m_image_label_voxel(img, i, j, k);
+          int64_t nb[3][3] = {{i + 1, j, k}, {i, j + 1, k}, {i, j, k + 1}};
+          for (int a = 0; a < 3; a++) {
+            /* the lower voxel may be outside on this axis only */
+            if ((a != 0 && i < 0) || (a != 1 && j < 0) || (a != 2 && k < 0)) continue;
+            int l1 = i2m_image_label_voxel(img, nb[a][0], nb[a][1], nb[a][2]);
+            if (l0 == l1) continue;
+            if (pass == 1) {
+              vface_t *f = *out + n;
+              f->c[0] = (int32_t)i;
+              f->c[1] = (int32_t)j;
+              f->c[2] = (int32_t)k;
+              f->axis = a;
+            }
+            n++;
+          }
+        }
+  }
+  *nout = n;
+  return I2M_OK;
+}
+
+/* ---- mesh interface triangles in the grid frame ---- */
+typedef struct {
+  const double *g;   /* [nv][3] grid-frame vertices */
+  const int32_t *v;  /* [n][3] */
+} tctx_t;
+
+static void tri_bbox(const void *ctx, int64_t i, double lo[3], double hi[3])
+{
+  const tctx_t *t = ctx;
+  for (int a = 0; a < 3; a++) {
+    lo[a] = INFINITY;
+    hi[a] = -INFINITY;
+    for (int j = 0; j < 3; j++) {
+      double x = t->g[3 * t->v[3 * i + j] + a];
+      lo[a] = fmin(lo[a], x);
+      hi[a] = fmax(hi[a], x);
+    }
+  }
+}
+
+static double tri_dist2(const void *ctx, int64_t i, const double p[3])
+{
+  const tctx_t *t = ctx;
+  const int32_t *v = t->v + 3 * i;
+  return ck_dist2_point_triangle(p, t->g + 3 * v[0], t->g + 3 * v[1], t->g + 3 * v[2]);
+}
+
+/* ---- percentiles of float arrays ---- */
+static double fpercentile(float *a, int64_t n, double q)
+{
+  if (n <= 0) return 0.0;
+  int64_t k = (int64_t)ceil(q * (double)n) - 1, lo = 0, hi = n - 1;
+  if (k < 0) k = 0;
+  while (lo < hi) {
+    float piv = a[lo + (hi - lo) / 2];
+    int64_t i = lo, j = hi;
+    while (i <= j) {
+      while (a[i] < piv) i++;
+      while (a[j] > piv) j--;
+      if (i <= j) {
+        float t = a[i];
+        a[i] = a[j];
+        a[j] = t;
+        i++;
+        j--;
+      }
+    }
+    if (k <= j)
+      hi = j;
+    else if (k >= i)
+      lo = i;
+    else
+      break;
+  }
+  return a[k];
+}
+
+/* Number of samples of a triangle: (n+1)(n+2)/2 with n even and n * spacing >= longest edge. */
+static int64_t tri_divisions(const double *a, const double *b, const double *c, double h)
+{
+  double l = 0;
+  const double *p[3] = {a, b, c};
+  for (int i = 0; i < 3; i++) {
+    const double *x = p[i], *y = p[(i + 1) % 3];
+    l = fmax(l, sqrt(i2m_sq(x[0] - y[0]) + i2m_sq(x[1] - y[1]) + i2m_sq(x[2] - y[2])));
+  }
+  double q = ceil(l / h);
+  int64_t n = q >= 2.0 ? (q < 4096.0 ? (int64_t)q : 4096) : 2; /* a huge triangle: bounded work */
+  if (n % 2) n++;
+  return n;
+}
+
+static void tri_sample(const double *a, const double *b, const double *c, int64_t n, int64_t s,
+                       double p[3])
+{
+  /* sample s enumerates (i, j), i + j <= n, row by row */
+  int64_t i = 0, row = n + 1;
+  while (s >= row) {
+    s -= row;
+    i++;
+    row--;
+  }
+  double u = (double)i / (double)n, w = (double)s / (double)n;
+  for (int k = 0; k < 3; k++) p[k] = a[k] + u * (b[k] - a[k]) + w * (c[k] - a[k]);
+}
+
+static void dist_summary(float *d, int64_t n, double sum, ck_dist_t *out)
+{
+  out->count = n;
+  out->mean = n ? sum / (double)n : 0.0;
+  out->p99 = fpercentile(d, n, 0.99);
+}
+
+/* mesh -> image */
+static i2m_err_t mesh_to_image(const tctx_t *tc, int64_t ntri, const grid_t *fg, const fctx_t *fc,
+                               double h, const i2m_image_t *img, ck_fidelity_t *f)
+{
+  int64_t *off = NULL, *arg = NULL;
+  float *d = NULL;
+  i2m_err_t err = I2M_OK;
+  I2M_CALL(i2m_malloc((size_t)ntri + 1, sizeof *off, &off));
+  off[0] = 0;
+  for (int64_t t = 0; t < ntri; t++) {
+    const int32_t *v = tc->v + 3 * t;
+    int64_t n = tri_divisions(tc->g + 3 * v[0], tc->g + 3 * v[1], tc->g + 3 * v[2], h);
+    off[t + 1] = off[t] + (n + 1) * (n + 2) / 2;
+  }
+  int64_t ns = off[ntri];
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)ns, sizeof *d, &d));
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)ntri, sizeof *arg, &arg));
+  double sum = 0.0;
+  CK_OMP("omp parallel for schedule(dynamic, 64) reduction(+ : sum)")
+  for (int64_t t = 0; t < ntri; t++) {
+    const int32_t *v = tc->v + 3 * t;
+    const double *a = tc->g + 3 * v[0], *b = tc->g + 3 * v[1], *c = tc->g + 3 * v[2];
+    int64_t n = tri_divisions(a, b, c, h), cnt = off[t + 1] - off[t];
+    double prev[3] = {0, 0, 0}, pd = INFINITY, best = -1;
+    int64_t hint = -1;
+    arg[t] = 0;
+    for (int64_t s = 0; s < cnt; s++) {
+      double p[3];
+      tri_sample(a, b, c, n, s, p);
+      double ub = isfinite(pd) ? pd + sqrt(i2m_sq(p[0] - prev[0]) + i2m_sq(p[1] - prev[1]) +
+                                           i2m_sq(p[2] - prev[2]))
+                               : INFINITY;
+      pd = grid_nearest(fg, p, ub, face_dist2, fc, &hint);
+      memcpy(prev, p, sizeof prev);
+      d[off[t] + s] = (float)pd;
+      sum += pd;
+      if (pd > best) {
+        best = pd;
+        arg[t] = s;
+      }
+    }
+  }
+  int64_t wt = -1;
+  double wmax = -1;
+  for (int64_t t = 0; t < ntri; t++)
+    if (d[off[t] + arg[t]] > wmax) {
+      wmax = d[off[t] + arg[t]];
+      wt = t;
+    }
+  f->mesh_to_image.max = ntri ? wmax : 0.0;
+  if (wt >= 0) {
+    const int32_t *v = tc->v + 3 * wt;
+    double p[3];
+    int64_t n = tri_divisions(tc->g + 3 * v[0], tc->g + 3 * v[1], tc->g + 3 * v[2], h);
+    tri_sample(tc->g + 3 * v[0], tc->g + 3 * v[1], tc->g + 3 * v[2], n, arg[wt], p);
+    f->mesh_to_image.max = grid_nearest(fg, p, INFINITY, face_dist2, fc, NULL);
+    i2m_image_grid_to_world(img, p, f->mesh_to_image.where);
+  }
+  f->mesh_samples = ns;
+  dist_summary(d, ns, sum, &f->mesh_to_image);
+out:
+  i2m_free(&off);
+  i2m_free(&arg);
+  i2m_free(&d);
+  return err;
+}
+
+/* Query points of an image face: centre and four corners. */
+static void face_points(const i2m_image_t *img, const vface_t *f, double p[5][3])
+{
+  int a = f->axis, b = (a + 1) % 3, c = (a + 2) % 3;
+  double x[3];
+  for (int k = 0; k < 3; k++) x[k] = f->c[k] * img->spacing[k];
+  x[a] += 0.5 * img->spacing[a];
+  static const double sb[5] = {0, -0.5, 0.5, -0.5, 0.5}, sc[5] = {0, -0.5, -0.5, 0.5, 0.5};
+  for (int q = 0; q < 5; q++) {
+    memcpy(p[q], x, sizeof x);
+    p[q][b] += sb[q] * img->spacing[b];
+    p[q][c] += sc[q] * img->spacing[c];
+  }
+}
+
+#define CK_CHUNK 1024
+
+static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const grid_t *tg,
+                               const tctx_t *tc, const i2m_image_t *img, ck_fidelity_t *f,
+                               int64_t *worst)
+{
+  float *d = NULL;
+  I2M_CALL(i2m_malloc((size_t)nf, sizeof *d, &d));
+  double sum = 0.0;
+  int64_t nchunk = (nf + CK_CHUNK - 1) / CK_CHUNK;
+  CK_OMP("omp parallel for schedule(dynamic, 4) reduction(+ : sum)")
+  for (int64_t ch = 0; ch < nchunk; ch++) {
+    double prev[3] = {0, 0, 0}, pd = INFINITY;
+    int64_t hint = -1;
+    int64_t end = (ch + 1) * CK_CHUNK < nf ? (ch + 1) * CK_CHUNK : nf;
+    for (int64_t i = ch * CK_CHUNK; i < end; i++) {
+      double p[5][3], m = 0.0;
+      face_points(img, faces + i, p);
+      for (int q = 0; q < 5; q++) {
+        double ub = isfinite(pd) ? pd + sqrt(i2m_sq(p[q][0] - prev[0]) + i2m_sq(p[q][1] - prev[1]) +
+                                             i2m_sq(p[q][2] - prev[2]))
+                                 : INFINITY;
+        pd = grid_nearest(tg, p[q], ub, tri_dist2, tc, &hint);
+        memcpy(prev, p[q], sizeof prev);
+        m = fmax(m, pd);
+      }
+      d[i] = (float)m;
+      sum += m;
+    }
+  }
+  *worst = -1;
+  double wmax = -1;
+  for (int64_t i = 0; i < nf; i++)
+    if (d[i] > wmax) {
+      wmax = d[i];
+      *worst = i;
+    }
+  if (*worst >= 0) { /* recompute the worst exactly (in double) and locate it */
+    double p[5][3], m = -1;
+    int qm = 0;
+    face_points(img, faces + *worst, p);
+    for (int q = 0; q < 5; q++) {
+      double x = grid_nearest(tg, p[q], INFINITY, tri_dist2, tc, NULL);
+      if (x > m) {
+        m = x;
+        qm = q;
+      }
+    }
+    f->image_to_mesh.max = m;
+    i2m_image_grid_to_world(img, p[qm], f->image_to_mesh.where);
+  }
+  f->image_faces = nf;
+  dist_summary(d, nf, sum, &f->image_to_mesh);
+  i2m_free(&d);
+  return I2M_OK;
+}
+
+/* ---- 6-connected components of the image: runs along i, union-find over runs ---- */
+typedef struct {
+  int64_t *row;  /* owned: [n1*n2+1] first run of each row (j,k) */
+  int32_t *x0;   /* owned: [nruns] first i */
+  int32_t *len;  /* owned: [nruns] */
+  uint16_t *lab; /* owned: [nruns] label index */
+  int64_t *par;  /* owned: [nruns] union-find parent */
+  int64_t *size; /* owned: [nruns] voxels of the component (valid at roots) */
+  int64_t nruns;
+} runs_t;
+
+static void runs_free(runs_t *r)
+{
+  i2m_free(&r->row);
+  i2m_free(&r->x0);
+  i2m_free(&r->len);
+  i2m_free(&r->lab);
+  i2m_free(&r->par);
+  i2m_free(&r->size);
+}
+
+/* Unites runs of rows a and b (both sorted by x0) that overlap and share a label. */
+static void runs_join(runs_t *r, int64_t a, int64_t b)
+{
+  int64_t i = r->row[a], j = r->row[b];
+  while (i < r->row[a + 1] && j < r->row[b + 1]) {
+    int64_t ie = r->x0[i] + r->len[i], je = r->x0[j] + r->len[j];
+    if (r->x0[i] < je && r->x0[j] < ie && r->lab[i] == r->lab[j]) ck_uf_union(r->par, i, j);
+    if (ie < je)
+      i++;
+    else
+      j++;
+  }
+}
+
+static i2m_err_t image_components(const i2m_image_t *img, runs_t *r)
+{
+  int64_t nrows = img->n[1] * img->n[2], n0 = img->n[0];
+  memset(r, 0, sizeof *r);
+  I2M_CALL(i2m_malloc((size_t)nrows + 1, sizeof *r->row, &r->row));
+  int64_t cnt = 0;
+  for (int64_t row = 0; row < nrows; row++) {
+    const uint16_t *v = img->vox + row * n0;
+    r->row[row] = cnt;
+    for (int64_t i = 0; i < n0; i++) cnt += i == 0 || v[i] != v[i - 1];
+  }
+  r->row[nrows] = cnt;
+  r->nruns = cnt;
+  I2M_CALL(i2m_malloc((size_t)cnt, sizeof *r->x0, &r->x0));
+  I2M_CALL(i2m_malloc((size_t)cnt, sizeof *r->len, &r->len));
+  I2M_CALL(i2m_malloc((size_t)cnt, sizeof *r->lab, &r->lab));
+  I2M_CALL(i2m_malloc((size_t)cnt, sizeof *r->par, &r->par));
+  I2M_CALL(i2m_calloc((size_t)cnt, sizeof *r->size, &r->size));
+  cnt = 0;
+  for (int64_t row = 0; row < nrows; row++) {
+    const uint16_t *v = img->vox + row * n0;
+    for (int64_t i = 0; i < n0; i++) {
+      if (i == 0 || v[i] != v[i - 1]) {
+        r->x0[cnt] = (int32_t)i;
+        r->len[cnt] = 0;
+        r->lab[cnt] = v[i];
+        r->par[cnt] = cnt;
+        cnt++;
+      }
+      r->len[cnt - 1]++;
+    }
+  }
+  for (int64_t k = 0; k < img->n[2]; k++)
+    for (int64_t j = 0; j < img->n[1]; j++) {
+      int64_t row = k * img->n[1] + j;
+      if (j > 0) runs_join(r, row, row - 1);
+      if (k > 0) runs_join(r, row, row - img->n[1]);
+    }
+  for (int64_t i = 0; i < cnt; i++) r->size[ck_uf_find(r->par, i)] += r->len[i];
+  return I2M_OK;
+}
+
+/* Component size of voxel (i,j,k); 0 outside the image. */
+static int64_t voxel_component(const i2m_image_t *img, runs_t *r, int64_t i, int64_t j, int64_t k)
+{
+  if (i < 0 || j < 0 || k < 0 || i >= img->n[0] || j >= img->n[1] || k >= img->n[2]) return 0;
+  int64_t row = k * img->n[1] + j, lo = r->row[row], hi = r->row[row + 1] - 1;
+  while (lo < hi) {
+    int64_t mid = (lo + hi + 1) / 2;
+    if (r->x0[mid] <= i)
+      lo = mid;
+    else
+      hi = mid - 1;
+  }
+  return r->size[ck_uf_find(r->par, lo)];
+}
+
+i2m_err_t ck_mesh_components(const ck_mesh_t *m, const ck_topo_t *topo, int64_t **comp,
+                             int64_t *ncomp)
+{
+  int64_t *par = NULL;
+  I2M_CALL(i2m_malloc((size_t)m->nt, sizeof *par, &par));
+  for (int64_t t = 0; t < m->nt; t++) par[t] = t;
+  for (int64_t id = 0; id < 4 * m->nt; id++) {
+    int64_t nb = topo->nb[id];
+    if (nb >= 0 && m->tet_label[nb / 4] == m->tet_label[id / 4]) ck_uf_union(par, id / 4, nb / 4);
+  }
+  *ncomp = 0;
+  for (int64_t t = 0; t < m->nt; t++) {
+    int64_t r = ck_uf_find(par, t);
+    if (r == t) (*ncomp)++;
+    par[t] = r;
+  }
+  *comp = par;
+  return I2M_OK;
+}
+
+/* ---- per-label figures ---- */
+static int cmp_i64(const void *a, const void *b)
+{
+  int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+  return (x > y) - (x < y);
+}
+
+static int64_t label_slot(const ck_fidelity_t *f, int64_t value)
+{
+  int lo = 0, hi = f->nlabels - 1;
+  while (lo < hi) {
+    int mid = (lo + hi) / 2;
+    if (f->labels[mid].value < value)
+      lo = mid + 1;
+    else
+      hi = mid;
+  }
+  return f->nlabels && f->labels[lo].value == value ? lo : -1;
+}
+
+static i2m_err_t label_table(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image_t *img,
+                             runs_t *runs, ck_fidelity_t *f)
+{
+  int64_t *vals = NULL, nv = 0, *comp = NULL, ncomp;
+  I2M_CALL(i2m_malloc((size_t)(m->nt + img->nlabels), sizeof *vals, &vals));
+  for (int l = 1; l < img->nlabels; l++)
+    if (img->label_count[l] > 0) vals[nv++] = img->label_value[l];
+  for (int64_t t = 0; t < m->nt; t++) vals[nv++] = m->tet_label[t];
+  qsort(vals, (size_t)nv, sizeof *vals, cmp_i64);
+  int64_t nd = 0;
+  for (int64_t i = 0; i < nv; i++)
+    if (vals[i] != 0 && (nd == 0 || vals[i] != vals[nd - 1])) vals[nd++] = vals[i];
+  i2m_err_t err = i2m_calloc((size_t)nd, sizeof *f->labels, &f->labels);
+  if (err != I2M_OK) goto out;
+  f->nlabels = (int)nd;
+  double vvol = img->spacing[0] * img->spacing[1] * img->spacing[2];
+  for (int64_t i = 0; i < nd; i++) f->labels[i].value = vals[i];
+  for (int l = 1; l < img->nlabels; l++) {
+    int64_t s = label_slot(f, img->label_value[l]);
+    if (s < 0) continue;
+    f->labels[s].voxels = img->label_count[l];
+    f->labels[s].image_volume = (double)img->label_count[l] * vvol;
+    f->labels[s].in_image = img->label_count[l] > 0;
+  }
+  for (int64_t r = 0; r < runs->nruns; r++) {
+    if (runs->par[r] != r || runs->lab[r] == 0) continue;
+    int64_t s = label_slot(f, img->label_value[runs->lab[r]]);
+    ck_label_t *L = &f->labels[s];
+    L->image_components++;
+    L->image_components_100 += runs->size[r] >= 100;
+    if (runs->size[r] > L->largest_component) L->largest_component = runs->size[r];
+    f->image_components_total++;
+  }
+  for (int64_t t = 0; t < m->nt; t++) {
+    ck_label_t *L = &f->labels[label_slot(f, m->tet_label[t])];
+    L->mesh_volume += topo->vol[t];
+    L->tets++;
+    L->in_mesh = 1;
+  }
+  I2M_CALL_GOTO(err, out, ck_mesh_components(m, topo, &comp, &ncomp));
+  for (int64_t t = 0; t < m->nt; t++)
+    if (comp[t] == t) f->labels[label_slot(f, m->tet_label[t])].mesh_components++;
+  for (int i = 0; i < f->nlabels; i++) {
+    ck_label_t *L = &f->labels[i];
+    L->rel_error_pct = L->image_volume > 0 ? 100.0 * (L->mesh_volume - L->image_volume) / L->image_volume
+                                           : (L->mesh_volume > 0 ? INFINITY : 0.0);
+    f->missing_labels += L->in_image && !L->in_mesh;
+    f->extra_labels += L->in_mesh && !L->in_image;
+  }
+out:
+  i2m_free(&vals);
+  i2m_free(&comp);
+  return err;
+}
+
+/* ---- driver ---- */
+static i2m_err_t build_face_grid(const i2m_image_t *img, const fctx_t *fc, int64_t nf, grid_t *g)
+{
+  /* cells of about two of the smallest voxel sizes, at least one voxel, at most 2^23 cells */
+  double smin = fmin(img->spacing[0], fmin(img->spacing[1], img->spacing[2]));
+  for (double scale = 2.0;; scale *= 1.25) {
+    double ncell = 1;
+    for (int a = 0; a < 3; a++) {
+      int64_t cv = (int64_t)floor(scale * smin / img->spacing[a] + 0.5);
+      if (cv < 1) cv = 1;
+      g->h[a] = (double)cv * img->spacing[a];
+      g->lo[a] = -0.5 * img->spacing[a] - 1e-9 * g->h[a];
+      g->n[a] = (img->n[a] + 1 + cv - 1) / cv + 1;
+      ncell *= (double)g->n[a];
+    }
+    if (ncell <= (double)((int64_t)1 << 23)) break;
+  }
+  return grid_build(g, nf, face_bbox, fc);
+}
+
+static i2m_err_t build_tri_grid(const tctx_t *tc, int64_t ntri, double min_h, grid_t *g)
+{
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  double elen = 0;
+  for (int64_t t = 0; t < ntri; t++) {
+    double a[3], b[3];
+    tri_bbox(tc, t, a, b);
+    for (int k = 0; k < 3; k++) {
+      lo[k] = fmin(lo[k], a[k]);
+      hi[k] = fmax(hi[k], b[k]);
+      elen += b[k] - a[k];
+    }
+  }
+  if (ntri == 0) {
+    for (int k = 0; k < 3; k++) lo[k] = hi[k] = 0;
+  }
+  double h = ntri ? fmax(elen / (3.0 * (double)ntri), min_h) : 1.0;
+  double vol = (hi[0] - lo[0] + h) * (hi[1] - lo[1] + h) * (hi[2] - lo[2] + h);
+  while (vol / (h * h * h) > 4.0 * (double)ntri + 1000.0) h *= 1.26;
+  for (int k = 0; k < 3; k++) {
+    g->h[k] = h;
+    g->lo[k] = lo[k] - 1e-9 * h;
+    g->n[k] = (int64_t)((hi[k] - lo[k]) / h) + 1;
+  }
+  return grid_build(g, ntri, tri_bbox, tc);
+}
+
+static void worst_face(const i2m_image_t *img, runs_t *runs, const vface_t *fc, ck_fidelity_t *f)
+{
+  int64_t c0[3] = {fc->c[0], fc->c[1], fc->c[2]}, c1[3] = {fc->c[0], fc->c[1], fc->c[2]};
+  c1[fc->axis]++;
+  int l0 = i2m_image_label_voxel(img, c0[0], c0[1], c0[2]);
+  int l1 = i2m_image_label_voxel(img, c1[0], c1[1], c1[2]);
+  int64_t v0 = img->label_value[l0], v1 = img->label_value[l1];
+  int64_t s0 = voxel_component(img, runs, c0[0], c0[1], c0[2]);
+  int64_t s1 = voxel_component(img, runs, c1[0], c1[1], c1[2]);
+  int sw = v0 > v1;
+  f->worst_pair[0] = sw ? v1 : v0;
+  f->worst_pair[1] = sw ? v0 : v1;
+  f->worst_component[0] = sw ? s1 : s0;
+  f->worst_component[1] = sw ? s0 : s1;
+}
+
+i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image_t *img,
+                      ck_fidelity_t *f)
+{
+  double *g = NULL;
+  vface_t *faces = NULL;
+  int64_t nf = 0, worst = -1;
+  grid_t fg = {0}, tg = {0};
+  runs_t runs = {0};
+  fctx_t fc = {img, NULL, NULL};
+  i2m_err_t err = I2M_OK;
+  memset(f, 0, sizeof *f);
+  f->min_spacing = fmin(img->spacing[0], fmin(img->spacing[1], img->spacing[2]));
+  f->sample_spacing = f->min_spacing / 2;
+  I2M_CALL(i2m_malloc((size_t)m->nv * 3, sizeof *g, &g));
+  double ext = 1e6 * (double)(img->n[0] + img->n[1] + img->n[2]) *
+               fmax(img->spacing[0], fmax(img->spacing[1], img->spacing[2]));
+  for (int64_t v = 0; v < m->nv; v++) {
+    i2m_image_world_to_grid(img, m->xyz + 3 * v, g + 3 * v);
+    for (int a = 0; a < 3; a++)
+      I2M_CHECK_GOTO(fabs(g[3 * v + a]) < ext, err, out, I2M_ERR_INPUT,
+                     "vertex %lld at (%g, %g, %g) is absurdly far from the image: no fidelity "
+                     "figures", (long long)v, m->xyz[3 * v], m->xyz[3 * v + 1], m->xyz[3 * v + 2]);
+  }
+  I2M_CALL_GOTO(err, out, image_faces(img, &faces, &nf));
+  fc.f = faces;
+  tctx_t tc = {g, topo->iface.v};
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nf * 6, sizeof *fc.box, &fc.box));
+  for (int64_t i = 0; i < nf; i++) face_box(&fc, i, fc.box + 6 * i, fc.box + 6 * i + 3);
+  I2M_CALL_GOTO(err, out, build_face_grid(img, &fc, nf, &fg));
+  I2M_CALL_GOTO(err, out, build_tri_grid(&tc, topo->iface.n, f->min_spacing, &tg));
+  double t0 = i2m_wtime();
+  I2M_CALL_GOTO(err, out, mesh_to_image(&tc, topo->iface.n, &fg, &fc, f->sample_spacing, img, f));
+  double t1 = i2m_wtime();
+  I2M_CALL_GOTO(err, out, image_to_mesh(faces, nf, &tg, &tc, img, f, &worst));
+  double t2 = i2m_wtime();
+  I2M_CALL_GOTO(err, out, image_components(img, &runs));
+  double t3 = i2m_wtime();
+  f->t_mesh_to_image = t1 - t0;
+  f->t_image_to_mesh = t2 - t1;
+  f->t_components = t3 - t2;
+  if (worst >= 0) worst_face(img, &runs, faces + worst, f);
+  I2M_CALL_GOTO(err, out, label_table(m, topo, img, &runs, f));
+  ck_dist_t *a = &f->mesh_to_image, *b = &f->image_to_mesh, *t = &f->two_sided;
+  *t = a->max >= b->max ? *a : *b;
+  t->p99 = fmax(a->p99, b->p99);
+  t->count = a->count + b->count;
+  t->mean = t->count ? (a->mean * (double)a->count + b->mean * (double)b->count) / (double)t->count : 0;
+out:
+  i2m_free(&g);
+  i2m_free(&faces);
+  i2m_free(&fc.box);
+  grid_free(&fg);
+  grid_free(&tg);
+  runs_free(&runs);
+  return err;
+}
+
+void ck_fidelity_free(ck_fidelity_t *f) { i2m_free(&f->labels); }

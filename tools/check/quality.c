@@ -1,0 +1,149 @@
+/* i2m-check: quality figures.  Per tetrahedron: the six dihedral angles (pi minus the angle
+ * between the outward normals of the two faces at an edge, by atan2 for accuracy) into a 1
+ * degree histogram; the radius-edge ratio (circumradius / shortest edge) with percentiles.
+ * Per interface triangle (derived from the tetrahedra): the smallest planar angle. */
+#include "check.h"
+
+#include <math.h>
+#include <string.h>
+
+static void sub(const double *a, const double *b, double *r)
+{
+  r[0] = a[0] - b[0];
+  r[1] = a[1] - b[1];
+  r[2] = a[2] - b[2];
+}
+static void cross(const double *a, const double *b, double *r)
+{
+  r[0] = a[1] * b[2] - a[2] * b[1];
+  r[1] = a[2] * b[0] - a[0] * b[2];
+  r[2] = a[0] * b[1] - a[1] * b[0];
+}
+static double dot(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+/* Dihedral angles (degrees) at the six edges of tet p[4]; returns 0 for a degenerate tet. */
+static int dihedrals(const double *p[4], double ang[6])
+{
+  static const int FACE[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+  static const int EDGE_OPP[6][2] = {{2, 3}, {1, 3}, {1, 2}, {0, 3}, {0, 2}, {0, 1}};
+  double n[4][3];
+  for (int f = 0; f < 4; f++) {
+    double u[3], v[3];
+    sub(p[FACE[f][1]], p[FACE[f][0]], u);
+    sub(p[FACE[f][2]], p[FACE[f][0]], v);
+    cross(u, v, n[f]);
+    if (dot(n[f], n[f]) == 0.0) return 0;
+  }
+  /* edge (i,j) lies on the faces opposite k and l, the two other vertices */
+  for (int e = 0; e < 6; e++) {
+    const double *a = n[EDGE_OPP[e][0]], *b = n[EDGE_OPP[e][1]];
+    double c[3];
+    cross(a, b, c);
+    ang[e] = 180.0 - atan2(sqrt(dot(c, c)), dot(a, b)) * 180.0 / CK_PI;
+  }
+  return 1;
+}
+
+/* Circumradius / shortest edge; INFINITY for a degenerate tet. */
+static double radius_edge(const double *p[4])
+{
+  double b[3], c[3], d[3], bc[3], cd[3], db[3], cen[3];
+  sub(p[1], p[0], b);
+  sub(p[2], p[0], c);
+  sub(p[3], p[0], d);
+  cross(c, d, cd);
+  cross(d, b, db);
+  cross(b, c, bc);
+  double den = 2.0 * dot(b, cd);
+  if (den == 0.0) return INFINITY;
+  double bb = dot(b, b), cc = dot(c, c), dd = dot(d, d);
+  for (int k = 0; k < 3; k++) cen[k] = (bb * cd[k] + cc * db[k] + dd * bc[k]) / den;
+  double r = sqrt(dot(cen, cen));
+  double emin = INFINITY;
+  for (int i = 0; i < 4; i++)
+    for (int j = i + 1; j < 4; j++) {
+      double e[3];
+      sub(p[i], p[j], e);
+      double l = dot(e, e);
+      if (l < emin) emin = l;
+    }
+  return emin > 0 ? r / sqrt(emin) : INFINITY;
+}
+
+static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
+{
+  static const double below[3] = {5.0, 10.0, 20.0};
+  q->min_dihedral = 180.0;
+  q->max_dihedral = 0.0;
+  q->min_dihedral_tet = q->max_dihedral_tet = q->max_ratio_tet = -1;
+  double sum = 0.0;
+  int64_t nfin = 0;
+  for (int64_t t = 0; t < m->nt; t++) {
+    const double *p[4];
+    for (int i = 0; i < 4; i++) p[i] = m->xyz + 3 * m->tet[4 * t + i];
+    double ang[6], lo = 180.0, hi = 0.0;
+    if (!dihedrals(p, ang)) {
+      ang[0] = ang[1] = ang[2] = 0.0;
+      ang[3] = ang[4] = ang[5] = 180.0;
+    }
+    for (int e = 0; e < 6; e++) {
+      int bin = ang[e] >= 0.0 && ang[e] < (double)CK_HIST_BINS ? (int)ang[e] : 0;
+      if (ang[e] >= (double)CK_HIST_BINS) bin = CK_HIST_BINS - 1;
+      q->dihedral_hist[bin]++;
+      if (ang[e] < lo) lo = ang[e];
+      if (ang[e] > hi) hi = ang[e];
+    }
+    for (int k = 0; k < 3; k++) q->dihedral_below[k] += lo < below[k];
+    if (lo < q->min_dihedral || q->min_dihedral_tet < 0) {
+      q->min_dihedral = lo;
+      q->min_dihedral_tet = t;
+    }
+    if (hi > q->max_dihedral || q->max_dihedral_tet < 0) {
+      q->max_dihedral = hi;
+      q->max_dihedral_tet = t;
+    }
+    ratio[t] = radius_edge(p);
+    if (q->max_ratio_tet < 0 || ratio[t] > q->max_ratio) {
+      q->max_ratio = ratio[t];
+      q->max_ratio_tet = t;
+    }
+    if (ratio[t] > q->ratio_bound) q->ratio_above_bound++;
+    if (ratio[t] > 2.0) q->ratio_above_2++;
+    if (isfinite(ratio[t])) {
+      sum += ratio[t];
+      nfin++;
+    }
+  }
+  q->ratio_mean = nfin ? sum / (double)nfin : 0.0;
+}
+
+i2m_err_t ck_quality(const ck_mesh_t *m, const ck_topo_t *topo, double ratio_bound,
+                     double facet_bound, ck_quality_t *q)
+{
+  double *ratio = NULL;
+  memset(q, 0, sizeof *q);
+  q->ratio_bound = ratio_bound;
+  q->facet_angle_bound = facet_bound;
+  I2M_CALL(i2m_malloc((size_t)m->nt, sizeof *ratio, &ratio));
+  tet_quality(m, ratio, q);
+  q->ratio_p50 = ck_percentile(ratio, m->nt, 0.50);
+  q->ratio_p90 = ck_percentile(ratio, m->nt, 0.90);
+  q->ratio_p99 = ck_percentile(ratio, m->nt, 0.99);
+  q->ratio_p999 = ck_percentile(ratio, m->nt, 0.999);
+  i2m_free(&ratio);
+  const ck_iface_t *f = &topo->iface;
+  q->ntri = f->n;
+  q->min_planar_angle = f->n ? 180.0 : 0.0;
+  q->min_planar_tri = -1;
+  for (int64_t i = 0; i < f->n; i++) {
+    const int32_t *v = f->v + 3 * i;
+    double a = ck_min_angle_deg(m->xyz + 3 * v[0], m->xyz + 3 * v[1], m->xyz + 3 * v[2]);
+    if (a < q->min_planar_angle) {
+      q->min_planar_angle = a;
+      q->min_planar_tri = i;
+    }
+    q->planar_below_30 += a < 30.0;
+    q->planar_below_bound += a < facet_bound;
+  }
+  return I2M_OK;
+}

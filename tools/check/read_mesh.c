@@ -1,0 +1,995 @@
+/* i2m-check: readers for the mesh files i2m writes (and simple variants of them).
+ *   .vtu   VTK XML UnstructuredGrid: appended raw data with UInt32 or UInt64 headers,
+ *          inline ascii or base64 DataArrays; no compression.  Tetrahedra (type 10) and
+ *          cell data "material" (else the first cell array); other cells are skipped.
+ *   .mesh  Medit ASCII: Vertices, Tetrahedra, Triangles; the comments
+ *          "# i2m interface N = labels A B" give each triangle ref its label pair.
+ *   .msh   Gmsh 4.1 ASCII or binary: $PhysicalNames ("interface_A_B" names give the pairs),
+ *          $Entities (physical tag of each entity), $Nodes, $Elements (tets and triangles).
+ * Every read is bounded by the file size: a truncated or corrupt file gives an error that
+ * names the file, never a crash.  Vertex ids are kept as found (validity checks the range). */
+#include "check.h"
+
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+typedef struct {
+  const char *p, *end; /* borrowed: cursor and end of the file buffer (NUL after end) */
+  const char *path;    /* borrowed */
+  int swap;            /* binary values are big-endian */
+} rd_t;
+
+void ck_mesh_free(ck_mesh_t *m)
+{
+  i2m_free(&m->xyz);
+  i2m_free(&m->tet);
+  i2m_free(&m->tet_label);
+  i2m_free(&m->tri);
+  i2m_free(&m->tri_label);
+  memset(m, 0, sizeof *m);
+}
+
+static i2m_err_t read_file(const char *path, char **buf, size_t *len)
+{
+  FILE *f = fopen(path, "rb");
+  *buf = NULL;
+  if (!f) return I2M_ERROR(I2M_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+  size_t cap = (size_t)1 << 20, n = 0;
+  char *b = NULL;
+  i2m_err_t err = i2m_malloc(cap + 1, 1, &b);
+  while (err == I2M_OK) {
+    if (n == cap) {
+      cap *= 2;
+      err = i2m_realloc(cap + 1, 1, &b);
+      if (err != I2M_OK) break;
+    }
+    size_t k = fread(b + n, 1, cap - n, f);
+    n += k;
+    if (k == 0) {
+      if (ferror(f)) err = I2M_ERROR(I2M_ERR_IO, "%s: read error", path);
+      break;
+    }
+  }
+  fclose(f);
+  if (err != I2M_OK) {
+    i2m_free(&b);
+    return err;
+  }
+  b[n] = '\0';
+  *buf = b;
+  *len = n;
+  return I2M_OK;
+}
+
+/* ---- cursor helpers ---- */
+static void rd_ws(rd_t *r)
+{
+  while (r->p < r->end && (*r->p == ' ' || *r->p == '\t' || *r->p == '\n' || *r->p == '\r'))
+    r->p++;
+}
+
+static int rd_i64(rd_t *r, int64_t *v)
+{
+  rd_ws(r);
+  if (r->p >= r->end) return 0;
+  char *e;
+  errno = 0;
+  long long x = strtoll(r->p, &e, 10);
+  if (e == r->p || errno || e > r->end) return 0;
+  r->p = e;
+  *v = x;
+  return 1;
+}
+
+static int rd_f64(rd_t *r, double *v)
+{
+  rd_ws(r);
+  if (r->p >= r->end) return 0;
+  char *e;
+  double x = strtod(r->p, &e);
+  if (e == r->p || e > r->end) return 0;
+  r->p = e;
+  *v = x;
+  return 1;
+}
+
+/* Next whitespace-delimited word (at most size-1 characters). */
+static int rd_word(rd_t *r, char *w, size_t size)
+{
+  rd_ws(r);
+  size_t n = 0;
+  while (r->p < r->end && *r->p != ' ' && *r->p != '\t' && *r->p != '\n' && *r->p != '\r') {
+    if (n + 1 < size) w[n++] = *r->p;
+    r->p++;
+  }
+  w[n] = '\0';
+  return n > 0;
+}
+
+static void rd_line_end(rd_t *r)
+{
+  while (r->p < r->end && *r->p != '\n') r->p++;
+  if (r->p < r->end) r->p++;
+}
+
+static int rd_bin(rd_t *r, void *dst, size_t n)
+{
+  if ((size_t)(r->end - r->p) < n) return 0;
+  memcpy(dst, r->p, n);
+  if (r->swap) {
+    unsigned char *d = dst, t;
+    for (size_t i = 0; i < n / 2; i++) {
+      t = d[i];
+      d[i] = d[n - 1 - i];
+      d[n - 1 - i] = t;
+    }
+  }
+  r->p += n;
+  return 1;
+}
+
+static const char *find_str(const char *p, const char *end, const char *s)
+{
+  size_t n = strlen(s);
+  for (; p + n <= end; p++)
+    if (*p == *s && memcmp(p, s, n) == 0) return p;
+  return NULL;
+}
+
+/* Checks that a count of items of at least min_bytes each fits in what is left. */
+static int count_fits(const rd_t *r, int64_t n, int64_t min_bytes)
+{
+  return n >= 0 && n <= (int64_t)(r->end - r->p) / min_bytes;
+}
+
+/* ==================================== Medit ==================================== */
+
+typedef struct {
+  int64_t *ref, *a, *b; /* owned: interface number -> labels */
+  int64_t n, cap;
+} medit_map_t;
+
+static i2m_err_t medit_comment(rd_t *r, medit_map_t *map)
+{
+  const char *eol = r->p;
+  while (eol < r->end && *eol != '\n') eol++;
+  static const char key[] = "# i2m interface ";
+  size_t kl = sizeof key - 1;
+  if ((size_t)(eol - r->p) > kl && memcmp(r->p, key, kl) == 0) {
+    rd_t s = {r->p + kl, eol, r->path, 0};
+    int64_t n, a, b;
+    char eq[8], lab[16];
+    if (rd_i64(&s, &n) && rd_word(&s, eq, sizeof eq) && strcmp(eq, "=") == 0 &&
+        rd_word(&s, lab, sizeof lab) && strcmp(lab, "labels") == 0 && rd_i64(&s, &a) &&
+        rd_i64(&s, &b)) {
+      if (map->n == map->cap) {
+        map->cap = map->cap ? 2 * map->cap : 64;
+        I2M_CALL(i2m_realloc((size_t)map->cap, sizeof(int64_t), &map->ref));
+        I2M_CALL(i2m_realloc((size_t)map->cap, sizeof(int64_t), &map->a));
+        I2M_CALL(i2m_realloc((size_t)map->cap, sizeof(int64_t), &map->b));
+      }
+      map->ref[map->n] = n;
+      map->a[map->n] = a < b ? a : b;
+      map->b[map->n] = a < b ? b : a;
+      map->n++;
+    }
+  }
+  r->p = eol;
+  return I2M_OK;
+}
+
+/* Reads n elements of nper ids + ref; ids become 0-based. */
+static i2m_err_t medit_elements(rd_t *r, const char *kw, int nper, int64_t *n, int64_t **ids,
+                                int64_t **ref)
+{
+  I2M_CHECK(rd_i64(r, n) && count_fits(r, *n, 2 * (nper + 1)), I2M_ERR_INPUT,
+            "%s: %s: bad or truncated element count", r->path, kw);
+  i2m_free(ids);
+  i2m_free(ref);
+  I2M_CALL(i2m_malloc((size_t)*n * (size_t)nper, sizeof(int64_t), ids));
+  I2M_CALL(i2m_malloc((size_t)*n, sizeof(int64_t), ref));
+  for (int64_t e = 0; e < *n; e++) {
+    for (int j = 0; j < nper; j++) {
+      int64_t v;
+      I2M_CHECK(rd_i64(r, &v), I2M_ERR_INPUT, "%s: %s: truncated or malformed at element %lld of %lld",
+                r->path, kw, (long long)(e + 1), (long long)*n);
+      (*ids)[e * nper + j] = v > INT64_MIN ? v - 1 : -1;
+    }
+    I2M_CHECK(rd_i64(r, &(*ref)[e]), I2M_ERR_INPUT,
+              "%s: %s: truncated or malformed at element %lld of %lld", r->path, kw,
+              (long long)(e + 1), (long long)*n);
+  }
+  return I2M_OK;
+}
+
+static i2m_err_t medit_skip(rd_t *r, const char *kw, int per)
+{
+  int64_t n;
+  double x;
+  I2M_CHECK(rd_i64(r, &n) && count_fits(r, n, 2 * per), I2M_ERR_INPUT,
+            "%s: %s: bad or truncated count", r->path, kw);
+  for (int64_t i = 0; i < n * per; i++)
+    I2M_CHECK(rd_f64(r, &x), I2M_ERR_INPUT, "%s: %s: truncated", r->path, kw);
+  return I2M_OK;
+}
+
+static int medit_skip_per(const char *kw)
+{
+  static const struct {
+    const char *kw;
+    int per;
+  } t[] = {{"Edges", 3},         {"Corners", 1},          {"RequiredVertices", 1},
+           {"Ridges", 1},        {"RequiredEdges", 1},    {"Quadrilaterals", 5},
+           {"Hexahedra", 9},     {"Prisms", 7},           {"Pyramids", 6},
+           {"Normals", 3},       {"NormalAtVertices", 2}, {"Tangents", 3},
+           {"TangentAtVertices", 2}, {"SubDomainFromMesh", 4}, {"RequiredTriangles", 1},
+           {"RequiredTetrahedra", 1}};
+  for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
+    if (strcmp(kw, t[i].kw) == 0) return t[i].per;
+  return 0;
+}
+
+static i2m_err_t medit_keyword(rd_t *r, const char *kw, ck_mesh_t *m, int64_t **tri_ref,
+                               int *dim, int *done)
+{
+  int64_t x;
+  if (strcmp(kw, "MeshVersionFormatted") == 0) {
+    I2M_CHECK(rd_i64(r, &x) && x >= 1 && x <= 4, I2M_ERR_INPUT,
+              "%s: bad MeshVersionFormatted", r->path);
+  } else if (strcmp(kw, "Dimension") == 0) {
+    I2M_CHECK(rd_i64(r, &x), I2M_ERR_INPUT, "%s: bad Dimension", r->path);
+    I2M_CHECK(x == 3, I2M_ERR_UNSUPPORTED, "%s: Dimension %lld (only 3D meshes are checked)",
+              r->path, (long long)x);
+    *dim = 3;
+  } else if (strcmp(kw, "Vertices") == 0) {
+    I2M_CHECK(*dim == 3, I2M_ERR_INPUT, "%s: Vertices before Dimension 3", r->path);
+    I2M_CHECK(rd_i64(r, &m->nv) && count_fits(r, m->nv, 8), I2M_ERR_INPUT,
+              "%s: Vertices: bad or truncated count", r->path);
+    i2m_free(&m->xyz);
+    I2M_CALL(i2m_malloc((size_t)m->nv * 3, sizeof(double), &m->xyz));
+    for (int64_t v = 0; v < m->nv; v++) {
+      double ref;
+      I2M_CHECK(rd_f64(r, &m->xyz[3 * v]) && rd_f64(r, &m->xyz[3 * v + 1]) &&
+                    rd_f64(r, &m->xyz[3 * v + 2]) && rd_f64(r, &ref),
+                I2M_ERR_INPUT, "%s: Vertices: truncated or malformed at vertex %lld of %lld",
+                r->path, (long long)(v + 1), (long long)m->nv);
+    }
+  } else if (strcmp(kw, "Tetrahedra") == 0) {
+    I2M_CALL(medit_elements(r, kw, 4, &m->nt, &m->tet, &m->tet_label));
+  } else if (strcmp(kw, "Triangles") == 0) {
+    I2M_CALL(medit_elements(r, kw, 3, &m->ntri, &m->tri, tri_ref));
+    m->has_tri = 1;
+  } else if (strcmp(kw, "End") == 0) {
+    *done = 1;
+  } else if (strcmp(kw, "Identifier") == 0 || strcmp(kw, "Geometry") == 0) {
+    rd_line_end(r);
+    rd_line_end(r);
+  } else if (medit_skip_per(kw) > 0) {
+    I2M_CALL(medit_skip(r, kw, medit_skip_per(kw)));
+  } else {
+    return I2M_ERROR(I2M_ERR_INPUT, "%s: unknown Medit keyword '%.40s'", r->path, kw);
+  }
+  return I2M_OK;
+}
+
+static i2m_err_t read_medit(rd_t *r, ck_mesh_t *m)
+{
+  medit_map_t map = {0};
+  int64_t *tri_ref = NULL, *lut = NULL;
+  int dim = 0, done = 0;
+  i2m_err_t err = I2M_OK;
+  char kw[64];
+  while (!done) {
+    rd_ws(r);
+    if (r->p >= r->end) break;
+    if (*r->p == '#') {
+      I2M_CALL_GOTO(err, out, medit_comment(r, &map));
+      continue;
+    }
+    rd_word(r, kw, sizeof kw);
+    I2M_CALL_GOTO(err, out, medit_keyword(r, kw, m, &tri_ref, &dim, &done));
+  }
+  I2M_CHECK_GOTO(m->xyz != NULL || m->nv == 0, err, out, I2M_ERR_INPUT, "%s: no Vertices",
+                 r->path);
+  I2M_CHECK_GOTO(dim == 3, err, out, I2M_ERR_INPUT, "%s: not a Medit mesh (no Dimension 3)",
+                 r->path);
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)m->ntri * 2, sizeof(int64_t), &m->tri_label));
+  m->tri_labels_known = 1;
+  int64_t maxref = 0;
+  for (int64_t k = 0; k < map.n; k++)
+    if (map.ref[k] > maxref && map.ref[k] <= ((int64_t)1 << 24)) maxref = map.ref[k];
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)maxref + 1, sizeof *lut, &lut));
+  for (int64_t k = 0; k <= maxref; k++) lut[k] = -1;
+  for (int64_t k = 0; k < map.n; k++)
+    if (map.ref[k] >= 0 && map.ref[k] <= maxref) lut[map.ref[k]] = k;
+  for (int64_t i = 0; i < m->ntri; i++) {
+    int64_t k = tri_ref[i] >= 0 && tri_ref[i] <= maxref ? lut[tri_ref[i]] : -1;
+    if (k < 0) {
+      m->tri_labels_known = 0;
+      m->tri_label[2 * i] = m->tri_label[2 * i + 1] = -1;
+    } else {
+      m->tri_label[2 * i] = map.a[k];
+      m->tri_label[2 * i + 1] = map.b[k];
+    }
+  }
+out:
+  i2m_free(&map.ref);
+  i2m_free(&map.a);
+  i2m_free(&map.b);
+  i2m_free(&tri_ref);
+  i2m_free(&lut);
+  return err;
+}
+
+/* ===================================== VTU ===================================== */
+
+enum { VTU_SEC_POINTS, VTU_SEC_CELLS, VTU_SEC_CELLDATA, VTU_SEC_OTHER };
+
+typedef struct {
+  const char *tag, *tag_end; /* "<DataArray" and its closing '>' */
+  int section;
+  char type[16], name[64], format[16];
+  int64_t offset, ncomp;
+} vtu_da_t;
+
+typedef struct {
+  const char *buf, *end, *path;
+  const char *app;  /* first byte after the '_' of the appended data, or NULL */
+  int hsize;        /* 4 or 8 */
+  int swap;
+} vtu_t;
+
+static int get_attr(const char *tag, const char *tag_end, const char *name, char *out, size_t size)
+{
+  char key[40];
+  snprintf(key, sizeof key, " %s=\"", name);
+  const char *a = find_str(tag, tag_end, key);
+  if (!a) {
+    snprintf(key, sizeof key, "\n%s=\"", name);
+    a = find_str(tag, tag_end, key);
+  }
+  if (!a) return 0;
+  a += strlen(key);
+  size_t n = 0;
+  while (a < tag_end && *a != '"') {
+    if (n + 1 < size) out[n++] = *a;
+    a++;
+  }
+  out[n] = '\0';
+  return 1;
+}
+
+static int vtu_type_size(const char *t)
+{
+  static const char *names[] = {"Int8",   "UInt8",  "Int16", "UInt16",  "Int32",
+                                "UInt32", "Int64",  "UInt64", "Float32", "Float64"};
+  static const int sizes[] = {1, 1, 2, 2, 4, 4, 8, 8, 4, 8};
+  for (int i = 0; i < 10; i++)
+    if (strcmp(t, names[i]) == 0) return sizes[i];
+  return 0;
+}
+
+/* Value i of raw array data of the given type, as a double and as an int64. */
+static void vtu_value(const char *t, const unsigned char *p, int swap, double *d, int64_t *v)
+{
+  unsigned char b[8];
+  int n = vtu_type_size(t);
+  for (int i = 0; i < n; i++) b[i] = swap ? p[n - 1 - i] : p[i];
+  union {
+    int8_t i8; uint8_t u8; int16_t i16; uint16_t u16; int32_t i32; uint32_t u32;
+    int64_t i64; uint64_t u64; float f32; double f64;
+  } u;
+  memcpy(&u, b, (size_t)n);
+  if (t[0] == 'F') {
+    *d = n == 4 ? (double)u.f32 : u.f64;
+    *v = *d > -9.0e18 && *d < 9.0e18 ? (int64_t)*d : INT64_MIN; /* NaN too */
+    return;
+  }
+  int sgn = t[0] == 'I';
+  switch (n) {
+  case 1: *v = sgn ? u.i8 : u.u8; break;
+  case 2: *v = sgn ? u.i16 : u.u16; break;
+  case 4: *v = sgn ? u.i32 : (int64_t)u.u32; break;
+  default: *v = sgn ? u.i64 : (int64_t)u.u64; break;
+  }
+  *d = (double)*v;
+}
+
+static int b64(int c)
+{
+  if (c >= 'A' && c <= 'Z') return c - 'A';
+  if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+  if (c >= '0' && c <= '9') return c - '0' + 52;
+  if (c == '+') return 62;
+  if (c == '/') return 63;
+  return -1;
+}
+
+/* Decodes base64 text [p, end) into *out (owned); *n bytes. */
+static i2m_err_t b64_decode(const char *p, const char *end, unsigned char **out, size_t *n)
+{
+  I2M_CALL(i2m_malloc((size_t)(end - p) / 4 * 3 + 4, 1, out));
+  uint32_t acc = 0;
+  int bits = 0;
+  *n = 0;
+  for (; p < end; p++) {
+    int c = b64((unsigned char)*p);
+    if (c < 0) continue; /* whitespace, '=' padding */
+    acc = (acc << 6) | (uint32_t)c;
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      (*out)[(*n)++] = (unsigned char)(acc >> bits);
+    }
+  }
+  return I2M_OK;
+}
+
+/* Reads count values of array da into d (doubles) or v (int64), whichever is not NULL. */
+static i2m_err_t vtu_array(const vtu_t *x, const vtu_da_t *da, int64_t count, double *d, int64_t *v)
+{
+  int ts = vtu_type_size(da->type);
+  unsigned char *tmp = NULL;
+  const unsigned char *data = NULL;
+  i2m_err_t err = I2M_OK;
+  I2M_CHECK(ts > 0, I2M_ERR_INPUT, "%s: DataArray %s has unknown type '%s'", x->path, da->name,
+            da->type);
+  if (strcmp(da->format, "ascii") == 0) {
+    rd_t r = {da->tag_end + 1, x->end, x->path, 0};
+    const char *stop = find_str(r.p, x->end, "</DataArray>");
+    if (stop) r.end = stop;
+    for (int64_t i = 0; i < count; i++) {
+      double dd = 0;
+      int64_t vv = 0;
+      int ok = da->type[0] == 'F' ? rd_f64(&r, &dd) : rd_i64(&r, &vv);
+      I2M_CHECK(ok, I2M_ERR_INPUT, "%s: DataArray %s: %lld values expected, fewer found",
+                x->path, da->name, (long long)count);
+      if (da->type[0] == 'F')
+        vv = dd > -9.0e18 && dd < 9.0e18 ? (int64_t)dd : INT64_MIN;
+      else
+        dd = (double)vv;
+      if (d) d[i] = dd;
+      if (v) v[i] = vv;
+    }
+    return I2M_OK;
+  }
+  uint64_t nbytes = 0;
+  size_t avail = 0;
+  if (strcmp(da->format, "appended") == 0) {
+    I2M_CHECK(x->app, I2M_ERR_INPUT, "%s: DataArray %s is appended but there is no AppendedData",
+              x->path, da->name);
+    I2M_CHECK(da->offset >= 0 && da->offset <= x->end - x->app, I2M_ERR_INPUT,
+              "%s: DataArray %s: offset %lld beyond the end of the file", x->path, da->name,
+              (long long)da->offset);
+    data = (const unsigned char *)x->app + da->offset;
+    avail = (size_t)((const unsigned char *)x->end - data);
+  } else if (strcmp(da->format, "binary") == 0) {
+    const char *stop = find_str(da->tag_end, x->end, "</DataArray>");
+    I2M_CHECK(stop, I2M_ERR_INPUT, "%s: DataArray %s is not closed", x->path, da->name);
+    size_t n;
+    I2M_CALL(b64_decode(da->tag_end + 1, stop, &tmp, &n));
+    data = tmp;
+    avail = n;
+  } else {
+    return I2M_ERROR(I2M_ERR_UNSUPPORTED, "%s: DataArray %s: format '%s' not supported", x->path,
+                     da->name, da->format);
+  }
+  I2M_CHECK_GOTO(avail >= (size_t)x->hsize, err, out, I2M_ERR_INPUT,
+                 "%s: DataArray %s: truncated", x->path, da->name);
+  double hd;
+  int64_t hv;
+  vtu_value(x->hsize == 8 ? "UInt64" : "UInt32", data, x->swap, &hd, &hv);
+  nbytes = (uint64_t)hv;
+  I2M_CHECK_GOTO(nbytes == (uint64_t)count * (uint64_t)ts, err, out, I2M_ERR_INPUT,
+                 "%s: DataArray %s: %llu bytes where %lld values of %s need %llu", x->path,
+                 da->name, (unsigned long long)nbytes, (long long)count, da->type,
+                 (unsigned long long)count * (unsigned long long)ts);
+  I2M_CHECK_GOTO(avail - (size_t)x->hsize >= nbytes, err, out, I2M_ERR_INPUT,
+                 "%s: DataArray %s: truncated (%llu bytes announced, %zu left in the file)",
+                 x->path, da->name, (unsigned long long)nbytes, avail - (size_t)x->hsize);
+  data += x->hsize;
+  for (int64_t i = 0; i < count; i++) {
+    double dd;
+    int64_t vv;
+    vtu_value(da->type, data + i * ts, x->swap, &dd, &vv);
+    if (d) d[i] = dd;
+    if (v) v[i] = vv;
+  }
+out:
+  i2m_free(&tmp);
+  return err;
+}
+
+/* Collects the DataArray tags of the XML part (before the appended data). */
+static i2m_err_t vtu_scan(vtu_t *x, const char *xml_end, vtu_da_t *das, int *nda, int max)
+{
+  const char *p = x->buf;
+  *nda = 0;
+  while ((p = find_str(p, xml_end, "<DataArray")) != NULL) {
+    I2M_CHECK(*nda < max, I2M_ERR_UNSUPPORTED, "%s: too many DataArrays", x->path);
+    vtu_da_t *d = &das[(*nda)++];
+    memset(d, 0, sizeof *d);
+    d->tag = p;
+    d->tag_end = memchr(p, '>', (size_t)(x->end - p));
+    I2M_CHECK(d->tag_end, I2M_ERR_INPUT, "%s: unterminated DataArray tag", x->path);
+    const char *sec[3] = {"<Points", "<Cells", "<CellData"};
+    const char *best = NULL;
+    d->section = VTU_SEC_OTHER;
+    for (int s = 0; s < 3; s++) {
+      const char *q = x->buf, *last = NULL;
+      while ((q = find_str(q, p, sec[s])) != NULL) last = q++;
+      if (last && (!best || last > best)) {
+        best = last;
+        d->section = s;
+      }
+    }
+    const char *pd = x->buf, *lastpd = NULL;
+    while ((pd = find_str(pd, p, "<PointData")) != NULL) lastpd = pd++;
+    if (lastpd && best && lastpd > best) d->section = VTU_SEC_OTHER;
+    char buf[32];
+    get_attr(p, d->tag_end, "type", d->type, sizeof d->type);
+    get_attr(p, d->tag_end, "Name", d->name, sizeof d->name);
+    if (!get_attr(p, d->tag_end, "format", d->format, sizeof d->format))
+      strcpy(d->format, "ascii");
+    d->offset = get_attr(p, d->tag_end, "offset", buf, sizeof buf) ? strtoll(buf, NULL, 10) : 0;
+    d->ncomp = get_attr(p, d->tag_end, "NumberOfComponents", buf, sizeof buf)
+                   ? strtoll(buf, NULL, 10) : 1;
+    p = d->tag_end;
+  }
+  return I2M_OK;
+}
+
+static const vtu_da_t *vtu_find(const vtu_da_t *das, int nda, int section, const char *name)
+{
+  for (int i = 0; i < nda; i++)
+    if (das[i].section == section && (!name || strcmp(das[i].name, name) == 0)) return &das[i];
+  return NULL;
+}
+
+static i2m_err_t vtu_header(vtu_t *x, const char **xml_end, int64_t *np, int64_t *nc)
+{
+  char buf[64];
+  const char *f = find_str(x->buf, x->end, "<VTKFile");
+  I2M_CHECK(f, I2M_ERR_INPUT, "%s: not a VTK XML file (no <VTKFile>)", x->path);
+  const char *fe = memchr(f, '>', (size_t)(x->end - f));
+  I2M_CHECK(fe, I2M_ERR_INPUT, "%s: truncated VTKFile tag", x->path);
+  I2M_CHECK(get_attr(f, fe, "type", buf, sizeof buf) && strcmp(buf, "UnstructuredGrid") == 0,
+            I2M_ERR_UNSUPPORTED, "%s: VTK file type is not UnstructuredGrid", x->path);
+  I2M_CHECK(!get_attr(f, fe, "compressor", buf, sizeof buf), I2M_ERR_UNSUPPORTED,
+            "%s: compressed VTU (%s) is not supported", x->path, buf);
+  x->swap = get_attr(f, fe, "byte_order", buf, sizeof buf) && strcmp(buf, "BigEndian") == 0;
+  x->hsize = get_attr(f, fe, "header_type", buf, sizeof buf) && strcmp(buf, "UInt64") == 0 ? 8 : 4;
+  const char *ad = find_str(fe, x->end, "<AppendedData");
+  *xml_end = ad ? ad : x->end;
+  if (ad) {
+    const char *ae = memchr(ad, '>', (size_t)(x->end - ad));
+    I2M_CHECK(ae, I2M_ERR_INPUT, "%s: truncated AppendedData tag", x->path);
+    if (get_attr(ad, ae, "encoding", buf, sizeof buf))
+      I2M_CHECK(strcmp(buf, "raw") == 0, I2M_ERR_UNSUPPORTED,
+                "%s: AppendedData encoding '%s' not supported (raw only)", x->path, buf);
+    const char *u = memchr(ae, '_', (size_t)(x->end - ae));
+    I2M_CHECK(u, I2M_ERR_INPUT, "%s: AppendedData without '_'", x->path);
+    x->app = u + 1;
+  }
+  /* the closing tag is the last thing written: without it the file was cut */
+  const char *tail = x->end - (x->end - x->buf > 64 ? 64 : x->end - x->buf);
+  I2M_CHECK(find_str(tail, x->end, "</VTKFile>"), I2M_ERR_INPUT,
+            "%s: truncated file (no </VTKFile> at the end)", x->path);
+  const char *pc = find_str(x->buf, *xml_end, "<Piece");
+  I2M_CHECK(pc, I2M_ERR_INPUT, "%s: no <Piece>", x->path);
+  const char *pe = memchr(pc, '>', (size_t)(x->end - pc));
+  I2M_CHECK(pe && find_str(pe, *xml_end, "<Piece") == NULL, I2M_ERR_UNSUPPORTED,
+            "%s: several Pieces are not supported", x->path);
+  I2M_CHECK(get_attr(pc, pe, "NumberOfPoints", buf, sizeof buf), I2M_ERR_INPUT,
+            "%s: Piece without NumberOfPoints", x->path);
+  *np = strtoll(buf, NULL, 10);
+  I2M_CHECK(get_attr(pc, pe, "NumberOfCells", buf, sizeof buf), I2M_ERR_INPUT,
+            "%s: Piece without NumberOfCells", x->path);
+  *nc = strtoll(buf, NULL, 10);
+  int64_t lim = (int64_t)(x->end - x->buf);
+  I2M_CHECK(*np >= 0 && *nc >= 0 && *np <= lim && *nc <= lim, I2M_ERR_INPUT,
+            "%s: NumberOfPoints %lld / NumberOfCells %lld do not fit a %lld-byte file", x->path,
+            (long long)*np, (long long)*nc, (long long)lim);
+  return I2M_OK;
+}
+
+static i2m_err_t read_vtu(const char *buf, size_t len, const char *path, ck_mesh_t *m)
+{
+  vtu_t x = {buf, buf + len, path, NULL, 4, 0};
+  vtu_da_t das[64];
+  int nda = 0;
+  const char *xml_end = NULL;
+  int64_t np = 0, nc = 0, *conn = NULL, *offs = NULL, *types = NULL, *mat = NULL;
+  i2m_err_t err = I2M_OK;
+  I2M_CALL(vtu_header(&x, &xml_end, &np, &nc));
+  I2M_CALL(vtu_scan(&x, xml_end, das, &nda, 64));
+  const vtu_da_t *dp = vtu_find(das, nda, VTU_SEC_POINTS, NULL);
+  const vtu_da_t *dc = vtu_find(das, nda, VTU_SEC_CELLS, "connectivity");
+  const vtu_da_t *doff = vtu_find(das, nda, VTU_SEC_CELLS, "offsets");
+  const vtu_da_t *dt = vtu_find(das, nda, VTU_SEC_CELLS, "types");
+  const vtu_da_t *dm = vtu_find(das, nda, VTU_SEC_CELLDATA, "material");
+  if (!dm) dm = vtu_find(das, nda, VTU_SEC_CELLDATA, NULL);
+  I2M_CHECK(dp && dc && doff && dt, I2M_ERR_INPUT,
+            "%s: missing Points or Cells arrays (connectivity, offsets, types)", path);
+  I2M_CHECK(dp->ncomp == 3, I2M_ERR_INPUT, "%s: Points have %lld components", path,
+            (long long)dp->ncomp);
+  m->nv = np;
+  I2M_CALL(i2m_malloc((size_t)np * 3, sizeof(double), &m->xyz));
+  I2M_CALL(vtu_array(&x, dp, 3 * np, m->xyz, NULL));
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nc, sizeof *offs, &offs));
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nc, sizeof *types, &types));
+  I2M_CALL_GOTO(err, out, vtu_array(&x, doff, nc, NULL, offs));
+  I2M_CALL_GOTO(err, out, vtu_array(&x, dt, nc, NULL, types));
+  int64_t nconn = nc ? offs[nc - 1] : 0;
+  I2M_CHECK_GOTO(nconn >= 0 && nconn <= (int64_t)len, err, out, I2M_ERR_INPUT,
+                 "%s: bad last cell offset %lld", path, (long long)nconn);
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nconn, sizeof *conn, &conn));
+  I2M_CALL_GOTO(err, out, vtu_array(&x, dc, nconn, NULL, conn));
+  if (dm) {
+    I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nc, sizeof *mat, &mat));
+    I2M_CALL_GOTO(err, out, vtu_array(&x, dm, nc, NULL, mat));
+  }
+  int64_t nt = 0;
+  for (int64_t c = 0; c < nc; c++) nt += types[c] == 10;
+  m->nt = nt;
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nt * 4, sizeof(int64_t), &m->tet));
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nt, sizeof(int64_t), &m->tet_label));
+  nt = 0;
+  for (int64_t c = 0; c < nc; c++) {
+    int64_t s = c ? offs[c - 1] : 0;
+    I2M_CHECK_GOTO(s >= 0 && offs[c] >= s && offs[c] <= nconn, err, out, I2M_ERR_INPUT,
+                   "%s: cell offsets are not increasing at cell %lld", path, (long long)c);
+    if (types[c] != 10) {
+      m->ignored_cells++;
+      continue;
+    }
+    I2M_CHECK_GOTO(offs[c] - s == 4, err, out, I2M_ERR_INPUT,
+                   "%s: tetrahedron %lld has %lld vertices", path, (long long)c,
+                   (long long)(offs[c] - s));
+    for (int j = 0; j < 4; j++) m->tet[4 * nt + j] = conn[s + j];
+    m->tet_label[nt++] = mat ? mat[c] : 1;
+  }
+out:
+  i2m_free(&conn);
+  i2m_free(&offs);
+  i2m_free(&types);
+  i2m_free(&mat);
+  return err;
+}
+
+/* ===================================== Gmsh ==================================== */
+
+typedef struct {
+  rd_t r;
+  int binary;
+  /* physical names: tag -> pair (dim 2 "interface_A_B") */
+  int64_t nphys;
+  int64_t *phys; /* owned: [nphys][4] dim, tag, a, b (a = b = -1: not an interface name) */
+  /* entity (dim, tag) -> first physical tag (0 = none) */
+  int64_t nent;
+  int64_t *ent;  /* owned: [nent][3] dim, tag, physical */
+  int64_t *node_map; /* owned: [max_tag+1] node tag -> index, -1 */
+  int64_t max_tag;
+} gm_t;
+
+static int g_size(gm_t *g, int64_t *v)
+{
+  if (!g->binary) return rd_i64(&g->r, v) && *v >= 0;
+  uint64_t u;
+  if (!rd_bin(&g->r, &u, 8)) return 0;
+  *v = (int64_t)u;
+  return *v >= 0;
+}
+
+static int g_int(gm_t *g, int64_t *v)
+{
+  if (!g->binary) return rd_i64(&g->r, v);
+  int32_t i;
+  if (!rd_bin(&g->r, &i, 4)) return 0;
+  *v = i;
+  return 1;
+}
+
+static int g_dbl(gm_t *g, double *v)
+{
+  if (!g->binary) return rd_f64(&g->r, v);
+  return rd_bin(&g->r, v, 8);
+}
+
+#define G_NEED(g, cond, sec)                                                                 \
+  I2M_CHECK(cond, I2M_ERR_INPUT, "%s: $%s: truncated or malformed", (g)->r.path, sec)
+
+static i2m_err_t gm_physical_names(gm_t *g)
+{
+  int64_t n;
+  G_NEED(g, rd_i64(&g->r, &n) && count_fits(&g->r, n, 6), "PhysicalNames");
+  I2M_CALL(i2m_malloc((size_t)n * 4, sizeof(int64_t), &g->phys));
+  g->nphys = n;
+  for (int64_t i = 0; i < n; i++) {
+    int64_t *p = g->phys + 4 * i;
+    char name[256];
+    G_NEED(g, rd_i64(&g->r, &p[0]) && rd_i64(&g->r, &p[1]), "PhysicalNames");
+    rd_ws(&g->r);
+    G_NEED(g, g->r.p < g->r.end && *g->r.p == '"', "PhysicalNames");
+    const char *q = ++g->r.p;
+    while (g->r.p < g->r.end && *g->r.p != '"') g->r.p++;
+    G_NEED(g, g->r.p < g->r.end, "PhysicalNames");
+    size_t len = (size_t)(g->r.p - q) < sizeof name - 1 ? (size_t)(g->r.p - q) : sizeof name - 1;
+    memcpy(name, q, len);
+    name[len] = '\0';
+    g->r.p++;
+    long long a, b;
+    char tail;
+    p[2] = p[3] = -1;
+    if (sscanf(name, "interface_%lld_%lld%c", &a, &b, &tail) == 2) {
+      p[2] = a < b ? a : b;
+      p[3] = a < b ? b : a;
+    }
+  }
+  return I2M_OK;
+}
+
+static i2m_err_t gm_entities(gm_t *g)
+{
+  int64_t cnt[4], total = 0;
+  for (int d = 0; d < 4; d++) {
+    G_NEED(g, g_size(g, &cnt[d]) && count_fits(&g->r, cnt[d], 8), "Entities");
+    total += cnt[d];
+  }
+  I2M_CALL(i2m_malloc((size_t)total * 3, sizeof(int64_t), &g->ent));
+  for (int d = 0; d < 4; d++)
+    for (int64_t e = 0; e < cnt[d]; e++) {
+      int64_t tag, nph, ph = 0, x, nb;
+      double bb;
+      G_NEED(g, g_int(g, &tag), "Entities");
+      for (int k = 0; k < (d == 0 ? 3 : 6); k++) G_NEED(g, g_dbl(g, &bb), "Entities");
+      G_NEED(g, g_size(g, &nph) && count_fits(&g->r, nph, 2), "Entities");
+      for (int64_t k = 0; k < nph; k++) {
+        G_NEED(g, g_int(g, &x), "Entities");
+        if (k == 0) ph = x;
+      }
+      if (d > 0) {
+        G_NEED(g, g_size(g, &nb) && count_fits(&g->r, nb, 2), "Entities");
+        for (int64_t k = 0; k < nb; k++) G_NEED(g, g_int(g, &x), "Entities");
+      }
+      int64_t *p = g->ent + 3 * g->nent++;
+      p[0] = d;
+      p[1] = tag;
+      p[2] = ph;
+    }
+  return I2M_OK;
+}
+
+static i2m_err_t gm_nodes(gm_t *g, ck_mesh_t *m)
+{
+  int64_t nblk, nn, mintag, maxtag, done = 0;
+  G_NEED(g, g_size(g, &nblk) && g_size(g, &nn) && g_size(g, &mintag) && g_size(g, &maxtag),
+         "Nodes");
+  G_NEED(g, count_fits(&g->r, nn, 8) && count_fits(&g->r, nblk, 8), "Nodes");
+  I2M_CHECK(maxtag <= 8 * nn + 1000000, I2M_ERR_UNSUPPORTED,
+            "%s: node tags up to %lld for %lld nodes are too sparse", g->r.path,
+            (long long)maxtag, (long long)nn);
+  m->nv = nn;
+  I2M_CALL(i2m_malloc((size_t)nn * 3, sizeof(double), &m->xyz));
+  I2M_CALL(i2m_malloc((size_t)maxtag + 1, sizeof(int64_t), &g->node_map));
+  g->max_tag = maxtag;
+  for (int64_t t = 0; t <= maxtag; t++) g->node_map[t] = -1;
+  for (int64_t b = 0; b < nblk; b++) {
+    int64_t dim, tag, par, n;
+    G_NEED(g, g_int(g, &dim) && g_int(g, &tag) && g_int(g, &par) && g_size(g, &n), "Nodes");
+    I2M_CHECK(par == 0, I2M_ERR_UNSUPPORTED, "%s: parametric nodes are not supported", g->r.path);
+    I2M_CHECK(n <= nn - done, I2M_ERR_INPUT, "%s: $Nodes: more nodes in blocks than announced",
+              g->r.path);
+    for (int64_t i = 0; i < n; i++) {
+      int64_t t;
+      G_NEED(g, g_size(g, &t), "Nodes");
+      I2M_CHECK(t >= 1 && t <= maxtag, I2M_ERR_INPUT, "%s: node tag %lld out of [1, %lld]",
+                g->r.path, (long long)t, (long long)maxtag);
+      I2M_CHECK(g->node_map[t] < 0, I2M_ERR_INPUT, "%s: node tag %lld appears twice", g->r.path,
+                (long long)t);
+      g->node_map[t] = done + i;
+    }
+    for (int64_t i = 0; i < 3 * n; i++) G_NEED(g, g_dbl(g, &m->xyz[3 * done + i]), "Nodes");
+    done += n;
+  }
+  I2M_CHECK(done == nn, I2M_ERR_INPUT, "%s: $Nodes announces %lld nodes, blocks hold %lld",
+            g->r.path, (long long)nn, (long long)done);
+  return I2M_OK;
+}
+
+static int gm_nodes_per(int64_t type)
+{
+  switch (type) {
+  case 15: return 1;
+  case 1: return 2;
+  case 2: return 3;
+  case 3: return 4;
+  case 4: return 4;
+  case 5: return 8;
+  case 6: return 6;
+  case 7: return 5;
+  case 8: return 3;
+  case 9: return 6;
+  case 11: return 10;
+  default: return 0;
+  }
+}
+
+static int64_t gm_entity_phys(const gm_t *g, int64_t dim, int64_t tag)
+{
+  for (int64_t e = 0; e < g->nent; e++)
+    if (g->ent[3 * e] == dim && g->ent[3 * e + 1] == tag) return g->ent[3 * e + 2];
+  return 0;
+}
+
+static int64_t gm_node(const gm_t *g, int64_t t)
+{
+  return t >= 1 && t <= g->max_tag ? g->node_map[t] : INT64_MAX;
+}
+
+static i2m_err_t gm_elements(gm_t *g, ck_mesh_t *m)
+{
+  int64_t nblk, ne, mn, mx;
+  G_NEED(g, g_size(g, &nblk) && g_size(g, &ne) && g_size(g, &mn) && g_size(g, &mx), "Elements");
+  G_NEED(g, count_fits(&g->r, ne, 8) && count_fits(&g->r, nblk, 8), "Elements");
+  I2M_CHECK(g->node_map || ne == 0, I2M_ERR_INPUT, "%s: $Elements before $Nodes", g->r.path);
+  I2M_CALL(i2m_malloc((size_t)ne * 4, sizeof(int64_t), &m->tet));
+  I2M_CALL(i2m_malloc((size_t)ne, sizeof(int64_t), &m->tet_label));
+  I2M_CALL(i2m_malloc((size_t)ne * 3, sizeof(int64_t), &m->tri));
+  I2M_CALL(i2m_malloc((size_t)ne * 2, sizeof(int64_t), &m->tri_label));
+  m->tri_labels_known = 1;
+  int64_t seen = 0;
+  for (int64_t b = 0; b < nblk; b++) {
+    int64_t dim, tag, type, n, id;
+    G_NEED(g, g_int(g, &dim) && g_int(g, &tag) && g_int(g, &type) && g_size(g, &n), "Elements");
+    int per = gm_nodes_per(type);
+    I2M_CHECK(per > 0, I2M_ERR_UNSUPPORTED, "%s: element type %lld not supported", g->r.path,
+              (long long)type);
+    I2M_CHECK(n <= ne - seen, I2M_ERR_INPUT, "%s: $Elements: more elements than announced",
+              g->r.path);
+    seen += n;
+    int64_t ph = gm_entity_phys(g, dim, tag), a = -1, c = -1;
+    if (type == 2) {
+      for (int64_t k = 0; k < g->nphys; k++)
+        if (g->phys[4 * k] == 2 && g->phys[4 * k + 1] == ph) {
+          a = g->phys[4 * k + 2];
+          c = g->phys[4 * k + 3];
+        }
+      if (a < 0 && n > 0) m->tri_labels_known = 0;
+    }
+    for (int64_t i = 0; i < n; i++) {
+      int64_t v[10];
+      G_NEED(g, g_size(g, &id), "Elements");
+      for (int j = 0; j < per; j++) G_NEED(g, g_size(g, &v[j]), "Elements");
+      if (type == 4) {
+        for (int j = 0; j < 4; j++) m->tet[4 * m->nt + j] = gm_node(g, v[j]);
+        m->tet_label[m->nt++] = ph ? ph : tag;
+      } else if (type == 2) {
+        for (int j = 0; j < 3; j++) m->tri[3 * m->ntri + j] = gm_node(g, v[j]);
+        m->tri_label[2 * m->ntri] = a;
+        m->tri_label[2 * m->ntri + 1] = c;
+        m->ntri++;
+      } else {
+        m->ignored_cells++;
+      }
+    }
+  }
+  m->has_tri = m->ntri > 0;
+  return I2M_OK;
+}
+
+static i2m_err_t gm_format(gm_t *g)
+{
+  char ver[16];
+  int64_t ft, ds;
+  G_NEED(g, rd_word(&g->r, ver, sizeof ver) && rd_i64(&g->r, &ft) && rd_i64(&g->r, &ds),
+         "MeshFormat");
+  I2M_CHECK(strcmp(ver, "4.1") == 0, I2M_ERR_UNSUPPORTED,
+            "%s: MSH version %s (only 4.1 is supported)", g->r.path, ver);
+  I2M_CHECK(ft == 0 || ft == 1, I2M_ERR_INPUT, "%s: bad MSH file type %lld", g->r.path, (long long)ft);
+  g->binary = ft == 1;
+  if (g->binary) {
+    I2M_CHECK(ds == 8, I2M_ERR_UNSUPPORTED, "%s: binary MSH with %lld-byte size_t", g->r.path,
+              (long long)ds);
+    rd_line_end(&g->r);
+    int32_t one;
+    G_NEED(g, rd_bin(&g->r, &one, 4), "MeshFormat");
+    if (one != 1) {
+      g->r.swap = 1;
+      I2M_CHECK(one == 0x01000000, I2M_ERR_INPUT, "%s: bad endianness mark", g->r.path);
+    }
+  }
+  return I2M_OK;
+}
+
+static i2m_err_t read_gmsh(rd_t *r0, ck_mesh_t *m)
+{
+  gm_t g;
+  memset(&g, 0, sizeof g);
+  g.r = *r0;
+  i2m_err_t err = I2M_OK;
+  char sec[64], endw[80];
+  int have_format = 0, have_elements = 0;
+  for (;;) {
+    rd_ws(&g.r);
+    if (g.r.p >= g.r.end) break;
+    I2M_CHECK_GOTO(*g.r.p == '$', err, out, I2M_ERR_INPUT,
+                   "%s: expected a $Section at byte %lld", g.r.path, (long long)(g.r.p - r0->p));
+    rd_word(&g.r, sec, sizeof sec);
+    rd_line_end(&g.r); /* binary data start right after the header line */
+    if (strcmp(sec, "$MeshFormat") == 0) {
+      I2M_CALL_GOTO(err, out, gm_format(&g));
+      have_format = 1;
+    } else {
+      I2M_CHECK_GOTO(have_format, err, out, I2M_ERR_INPUT, "%s: not a Gmsh file (no $MeshFormat)",
+                     g.r.path);
+      if (strcmp(sec, "$PhysicalNames") == 0) {
+        I2M_CALL_GOTO(err, out, gm_physical_names(&g));
+      } else if (strcmp(sec, "$Entities") == 0) {
+        I2M_CALL_GOTO(err, out, gm_entities(&g));
+      } else if (strcmp(sec, "$Nodes") == 0) {
+        I2M_CALL_GOTO(err, out, gm_nodes(&g, m));
+      } else if (strcmp(sec, "$Elements") == 0) {
+        I2M_CALL_GOTO(err, out, gm_elements(&g, m));
+        have_elements = 1;
+      }
+    }
+    snprintf(endw, sizeof endw, "$End%s", sec + 1);
+    if (strcmp(sec, "$MeshFormat") && strcmp(sec, "$PhysicalNames") && strcmp(sec, "$Entities") &&
+        strcmp(sec, "$Nodes") && strcmp(sec, "$Elements")) {
+      const char *e = find_str(g.r.p, g.r.end, endw); /* unknown section: skip it */
+      I2M_CHECK_GOTO(e, err, out, I2M_ERR_INPUT, "%s: %s is not closed", g.r.path, sec);
+      g.r.p = e;
+    }
+    rd_word(&g.r, sec, sizeof sec);
+    I2M_CHECK_GOTO(strcmp(sec, endw) == 0, err, out, I2M_ERR_INPUT,
+                   "%s: expected %s, found '%.20s' (truncated or corrupt file)", g.r.path, endw, sec);
+  }
+  I2M_CHECK_GOTO(have_format && have_elements, err, out, I2M_ERR_INPUT,
+                 "%s: not a complete Gmsh mesh (no $MeshFormat or $Elements)", g.r.path);
+out:
+  i2m_free(&g.phys);
+  i2m_free(&g.ent);
+  i2m_free(&g.node_map);
+  return err;
+}
+
+/* ================================== dispatch =================================== */
+
+static int ends_with(const char *s, const char *suf)
+{
+  size_t a = strlen(s), b = strlen(suf);
+  return a >= b && strcasecmp(s + a - b, suf) == 0;
+}
+
+i2m_err_t ck_mesh_read(const char *path, ck_mesh_t *m)
+{
+  char *buf = NULL;
+  size_t len = 0;
+  memset(m, 0, sizeof *m);
+  int fmt = ends_with(path, ".vtu") ? 1 : ends_with(path, ".mesh") ? 2 : ends_with(path, ".msh") ? 3 : 0;
+  I2M_CHECK(fmt, I2M_ERR_ARG, "%s: unknown mesh format (expected .vtu, .mesh or .msh)", path);
+  I2M_CALL(read_file(path, &buf, &len));
+  rd_t r = {buf, buf + len, path, 0};
+  i2m_err_t err;
+  if (fmt == 1) {
+    strcpy(m->format, "vtu");
+    err = read_vtu(buf, len, path, m);
+  } else if (fmt == 2) {
+    strcpy(m->format, "medit");
+    err = read_medit(&r, m);
+  } else {
+    strcpy(m->format, "gmsh");
+    err = read_gmsh(&r, m);
+  }
+  i2m_free(&buf);
+  if (err != I2M_OK) {
+    ck_mesh_free(m);
+    return err;
+  }
+  /* a file without triangles: keep empty arrays */
+  if (!m->tri_label && m->ntri == 0) m->tri_labels_known = 0;
+  return I2M_OK;
+}

@@ -1,0 +1,397 @@
+/* i2m-check: validity of a tetrahedral mesh, recomputed from the file alone.  Vertex ids in
+ * range; exact orientation of every tetrahedron; face matching by sorting (faces bucketed by
+ * their smallest vertex, then sorted by the other two): each face is used once (boundary) or
+ * twice (interior, by two tetrahedra on opposite sides), never three times; no dangling or
+ * duplicate vertices; the boundary surface is closed; interface triangles derived from the
+ * tetrahedra, compared with the file's triangles when it has some. */
+#include "check.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Outward-oriented face opposite vertex f of a positive tetrahedron. */
+static const int FACE[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+
+typedef struct {
+  uint64_t key; /* (middle id << 32) | largest id */
+  int64_t id;   /* 4 t + f */
+} fent_t;
+
+static int cmp_fent(const void *a, const void *b)
+{
+  const fent_t *x = a, *y = b;
+  if (x->key != y->key) return x->key < y->key ? -1 : 1;
+  return (x->id > y->id) - (x->id < y->id);
+}
+
+/* Sorted ids of a triangle and the parity (0 even, 1 odd) of the sorting permutation. */
+static int sort3(int64_t v0, int64_t v1, int64_t v2, int64_t s[3])
+{
+  int par = 0;
+  int64_t t;
+  s[0] = v0, s[1] = v1, s[2] = v2;
+  if (s[0] > s[1]) { t = s[0]; s[0] = s[1]; s[1] = t; par ^= 1; }
+  if (s[1] > s[2]) { t = s[1]; s[1] = s[2]; s[2] = t; par ^= 1; }
+  if (s[0] > s[1]) { t = s[0]; s[0] = s[1]; s[1] = t; par ^= 1; }
+  return par;
+}
+
+static int face_of(const ck_mesh_t *m, int64_t id, int64_t s[3])
+{
+  const int64_t *tv = m->tet + 4 * (id / 4);
+  const int *F = FACE[id % 4];
+  return sort3(tv[F[0]], tv[F[1]], tv[F[2]], s);
+}
+
+static void add_error(ck_validity_t *v, const char *name)
+{
+  size_t n = strlen(v->errors);
+  if (n + strlen(name) + 2 >= sizeof v->errors) return;
+  snprintf(v->errors + n, sizeof v->errors - n, "%s%s", n ? "," : "", name);
+}
+
+static void isort_fent(fent_t *a, int64_t n)
+{
+  for (int64_t i = 1; i < n; i++) {
+    fent_t x = a[i];
+    int64_t j = i - 1;
+    while (j >= 0 && cmp_fent(&a[j], &x) > 0) {
+      a[j + 1] = a[j];
+      j--;
+    }
+    a[j + 1] = x;
+  }
+}
+
+/* Face matching: fills topo->nb and the face counts. */
+static i2m_err_t match_faces(const ck_mesh_t *m, const int8_t *sgn, ck_validity_t *v, ck_topo_t *topo)
+{
+  int64_t *start = NULL;
+  fent_t *ent = NULL;
+  i2m_err_t err = I2M_OK;
+  int64_t nf = 4 * m->nt;
+  I2M_CALL(i2m_malloc((size_t)nf, sizeof *topo->nb, &topo->nb));
+  I2M_CALL(i2m_calloc((size_t)m->nv + 1, sizeof *start, &start));
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nf, sizeof *ent, &ent));
+  int64_t s[3];
+  for (int64_t id = 0; id < nf; id++) {
+    face_of(m, id, s);
+    start[s[0] + 1]++;
+  }
+  for (int64_t i = 0; i < m->nv; i++) start[i + 1] += start[i];
+  for (int64_t id = 0; id < nf; id++) {
+    face_of(m, id, s);
+    fent_t *e = &ent[start[s[0]]++];
+    e->key = ((uint64_t)s[1] << 32) | (uint64_t)s[2];
+    e->id = id;
+  }
+  for (int64_t i = m->nv; i > 0; i--) start[i] = start[i - 1]; /* restore bucket starts */
+  start[0] = 0;
+  for (int64_t b = 0; b < m->nv; b++) {
+    int64_t n = start[b + 1] - start[b];
+    if (n < 32)
+      isort_fent(ent + start[b], n);
+    else
+      qsort(ent + start[b], (size_t)n, sizeof *ent, cmp_fent);
+  }
+  v->first_nonmanifold_tet = v->first_overlapping_tet = -1;
+  for (int64_t b = 0; b < m->nv; b++)
+    for (int64_t i = start[b]; i < start[b + 1];) {
+      int64_t j = i + 1;
+      while (j < start[b + 1] && ent[j].key == ent[i].key) j++;
+      int64_t ia = ent[i].id, ib = ent[i + 1 < j ? i + 1 : i].id;
+      if (j - i == 1) {
+        topo->nb[ia] = -1;
+        v->boundary_faces++;
+      } else if (j - i == 2) {
+        topo->nb[ia] = ib;
+        topo->nb[ib] = ia;
+        v->interior_faces++;
+        if (sgn[ia / 4] > 0 && sgn[ib / 4] > 0 && face_of(m, ia, s) == face_of(m, ib, s)) {
+          if (v->overlapping_faces++ == 0) v->first_overlapping_tet = ia / 4;
+        }
+      } else {
+        for (int64_t k = i; k < j; k++) topo->nb[ent[k].id] = -2;
+        if (v->nonmanifold_faces++ == 0) v->first_nonmanifold_tet = ia / 4;
+      }
+      i = j;
+    }
+out:
+  i2m_free(&start);
+  i2m_free(&ent);
+  return err;
+}
+
+static int cmp_u64(const void *a, const void *b)
+{
+  uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+  return (x > y) - (x < y);
+}
+
+/* Every edge of the boundary surface must be used an even number of times. */
+static i2m_err_t boundary_edges(const ck_mesh_t *m, const ck_topo_t *topo, ck_validity_t *v)
+{
+  uint64_t *e = NULL;
+  int64_t ne = 0, s[3];
+  I2M_CALL(i2m_malloc((size_t)v->boundary_faces * 3, sizeof *e, &e));
+  for (int64_t id = 0; id < 4 * m->nt; id++) {
+    if (topo->nb[id] != -1) continue;
+    face_of(m, id, s);
+    e[ne++] = ((uint64_t)s[0] << 32) | (uint64_t)s[1];
+    e[ne++] = ((uint64_t)s[0] << 32) | (uint64_t)s[2];
+    e[ne++] = ((uint64_t)s[1] << 32) | (uint64_t)s[2];
+  }
+  qsort(e, (size_t)ne, sizeof *e, cmp_u64);
+  for (int64_t i = 0; i < ne;) {
+    int64_t j = i + 1;
+    while (j < ne && e[j] == e[i]) j++;
+    v->boundary_edges++;
+    if ((j - i) % 2) v->boundary_open_edges++;
+    i = j;
+  }
+  i2m_free(&e);
+  return I2M_OK;
+}
+
+/* Dangling (unused) and duplicate (same coordinates) vertices; duplicates by hashing. */
+static i2m_err_t vertices(const ck_mesh_t *m, ck_validity_t *v)
+{
+  uint8_t *used = NULL;
+  int64_t *slot = NULL;
+  I2M_CALL(i2m_calloc((size_t)m->nv, 1, &used));
+  for (int64_t i = 0; i < 4 * m->nt; i++) used[m->tet[i]] = 1;
+  v->first_dangling = v->first_duplicate = v->first_duplicate_of = -1;
+  for (int64_t i = 0; i < m->nv; i++)
+    if (!used[i] && v->dangling++ == 0) v->first_dangling = i;
+  i2m_free(&used);
+  size_t cap = 16;
+  while (cap < 2 * (size_t)m->nv) cap *= 2;
+  I2M_CALL(i2m_malloc(cap, sizeof *slot, &slot));
+  for (size_t i = 0; i < cap; i++) slot[i] = -1;
+  for (int64_t i = 0; i < m->nv; i++) {
+    double x[3];
+    uint64_t bits[3], h = 1469598103934665603ull;
+    for (int a = 0; a < 3; a++) {
+      x[a] = m->xyz[3 * i + a] + 0.0; /* -0 -> +0 */
+      memcpy(&bits[a], &x[a], 8);
+      h = (h ^ bits[a]) * 0x100000001b3ull;
+      h ^= h >> 29;
+    }
+    size_t s = (size_t)(h * 0x9E3779B97F4A7C15ull >> 20) & (cap - 1);
+    while (slot[s] >= 0) {
+      const double *y = m->xyz + 3 * slot[s];
+      if (y[0] == x[0] && y[1] == x[1] && y[2] == x[2]) break;
+      s = (s + 1) & (cap - 1);
+    }
+    if (slot[s] >= 0) {
+      if (v->duplicate++ == 0) {
+        v->first_duplicate = i;
+        v->first_duplicate_of = slot[s];
+      }
+    } else {
+      slot[s] = i;
+    }
+  }
+  i2m_free(&slot);
+  return I2M_OK;
+}
+
+/* Interface triangles from the tetrahedra: boundary faces (label vs 0) and faces between
+ * two labels, oriented from the smaller label to the larger. */
+static i2m_err_t derive_interfaces(const ck_mesh_t *m, ck_topo_t *topo)
+{
+  ck_iface_t *f = &topo->iface;
+  int64_t n = 0;
+  for (int pass = 0; pass < 2; pass++) {
+    if (pass == 1) {
+      I2M_CALL(i2m_malloc((size_t)n * 3, sizeof *f->v, &f->v));
+      I2M_CALL(i2m_malloc((size_t)n * 2, sizeof *f->lab, &f->lab));
+      f->n = n;
+      n = 0;
+    }
+    for (int64_t id = 0; id < 4 * m->nt; id++) {
+      int64_t nb = topo->nb[id], lt = m->tet_label[id / 4], lo;
+      if (nb == -2 || (nb >= 0 && nb < id)) continue;
+      lo = nb >= 0 ? m->tet_label[nb / 4] : 0;
+      if (lo == lt) continue;
+      if (pass == 1) {
+        const int64_t *tv = m->tet + 4 * (id / 4);
+        const int *F = FACE[id % 4];
+        int keep = lt < lo; /* outward normal points from lt to lo */
+        f->v[3 * n] = (int32_t)tv[F[0]];
+        f->v[3 * n + 1] = (int32_t)tv[keep ? F[1] : F[2]];
+        f->v[3 * n + 2] = (int32_t)tv[keep ? F[2] : F[1]];
+        f->lab[2 * n] = lt < lo ? lt : lo;
+        f->lab[2 * n + 1] = lt < lo ? lo : lt;
+      }
+      n++;
+    }
+  }
+  return I2M_OK;
+}
+
+typedef struct {
+  int64_t s[3];
+  int64_t a, b;
+  int par;
+} tkey_t;
+
+static int cmp_tkey(const void *x, const void *y)
+{
+  const tkey_t *p = x, *q = y;
+  for (int k = 0; k < 3; k++)
+    if (p->s[k] != q->s[k]) return p->s[k] < q->s[k] ? -1 : 1;
+  return 0;
+}
+
+static i2m_err_t compare_file(const ck_mesh_t *m, const ck_topo_t *topo, ck_validity_t *v)
+{
+  const ck_iface_t *f = &topo->iface;
+  tkey_t *d = NULL, *t = NULL;
+  i2m_err_t err = I2M_OK;
+  I2M_CALL(i2m_malloc((size_t)f->n, sizeof *d, &d));
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)m->ntri, sizeof *t, &t));
+  for (int64_t i = 0; i < f->n; i++) {
+    d[i].par = sort3(f->v[3 * i], f->v[3 * i + 1], f->v[3 * i + 2], d[i].s);
+    d[i].a = f->lab[2 * i];
+    d[i].b = f->lab[2 * i + 1];
+  }
+  for (int64_t i = 0; i < m->ntri; i++) {
+    t[i].par = sort3(m->tri[3 * i], m->tri[3 * i + 1], m->tri[3 * i + 2], t[i].s);
+    t[i].a = m->tri_label[2 * i];
+    t[i].b = m->tri_label[2 * i + 1];
+  }
+  qsort(d, (size_t)f->n, sizeof *d, cmp_tkey);
+  qsort(t, (size_t)m->ntri, sizeof *t, cmp_tkey);
+  int64_t i = 0, j = 0;
+  while (i < f->n || j < m->ntri) {
+    if (j > 0 && j < m->ntri && cmp_tkey(&t[j], &t[j - 1]) == 0) {
+      v->file_duplicate++;
+      j++;
+      continue;
+    }
+    int c = i >= f->n ? 1 : j >= m->ntri ? -1 : cmp_tkey(&d[i], &t[j]);
+    if (c < 0) {
+      v->interface_not_in_file++;
+      i++;
+    } else if (c > 0) {
+      v->file_not_interface++;
+      j++;
+    } else {
+      if (m->tri_labels_known && (d[i].a != t[j].a || d[i].b != t[j].b)) v->file_label_mismatch++;
+      if (d[i].par != t[j].par) v->file_flipped++;
+      i++;
+      j++;
+    }
+  }
+out:
+  i2m_free(&d);
+  i2m_free(&t);
+  return err;
+}
+
+static int cmp_pair(const void *x, const void *y)
+{
+  const int64_t *a = x, *b = y;
+  if (a[0] != b[0]) return a[0] < b[0] ? -1 : 1;
+  return (a[1] > b[1]) - (a[1] < b[1]);
+}
+
+/* Number of distinct label pairs among the interface triangles. */
+static i2m_err_t count_pairs(const ck_iface_t *f, int64_t *npairs)
+{
+  int64_t *p = NULL, n = 0;
+  I2M_CALL(i2m_malloc((size_t)f->n * 2, sizeof *p, &p));
+  memcpy(p, f->lab, (size_t)f->n * 2 * sizeof *p);
+  qsort(p, (size_t)f->n, 2 * sizeof *p, cmp_pair);
+  for (int64_t i = 0; i < f->n; i++) n += i == 0 || cmp_pair(p + 2 * i, p + 2 * i - 2) != 0;
+  i2m_free(&p);
+  *npairs = n;
+  return I2M_OK;
+}
+
+static void geometry(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo, int8_t *sgn)
+{
+  v->first_inverted = v->first_degenerate = v->min_volume_tet = -1;
+  for (int64_t t = 0; t < m->nt; t++) {
+    const int64_t *tv = m->tet + 4 * t;
+    const double *a = m->xyz + 3 * tv[0], *b = m->xyz + 3 * tv[1], *c = m->xyz + 3 * tv[2],
+                 *d = m->xyz + 3 * tv[3];
+    sgn[t] = (int8_t)ck_orient3d(a, b, c, d);
+    topo->vol[t] = ck_volume6(a, b, c, d) / 6.0;
+    if (sgn[t] < 0 && v->inverted++ == 0) v->first_inverted = t;
+    if (sgn[t] == 0 && v->degenerate++ == 0) v->first_degenerate = t;
+    if (v->min_volume_tet < 0 || topo->vol[t] < v->min_volume) {
+      v->min_volume = topo->vol[t];
+      v->min_volume_tet = t;
+    }
+    v->total_volume += topo->vol[t];
+  }
+}
+
+i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo)
+{
+  int8_t *sgn = NULL;
+  i2m_err_t err = I2M_OK;
+  memset(v, 0, sizeof *v);
+  memset(topo, 0, sizeof *topo);
+  v->first_bad_index = -1;
+  I2M_CHECK(m->nv < INT32_MAX, I2M_ERR_UNSUPPORTED, "%lld vertices: more than 32-bit ids",
+            (long long)m->nv);
+  for (int64_t t = 0; t < m->nt; t++)
+    for (int j = 0; j < 4; j++)
+      if (m->tet[4 * t + j] < 0 || m->tet[4 * t + j] >= m->nv) {
+        if (v->bad_index++ == 0) v->first_bad_index = t;
+        break;
+      }
+  for (int64_t i = 0; i < 3 * m->ntri; i++)
+    if (m->tri[i] < 0 || m->tri[i] >= m->nv) v->tri_bad_index++;
+  v->first_nonfinite = -1;
+  for (int64_t i = 0; i < m->nv; i++)
+    if (!isfinite(m->xyz[3 * i]) || !isfinite(m->xyz[3 * i + 1]) || !isfinite(m->xyz[3 * i + 2]))
+      if (v->nonfinite++ == 0) v->first_nonfinite = i;
+  v->file_triangles = m->ntri;
+  if (m->nt == 0) add_error(v, "no_tetrahedra");
+  if (v->bad_index) add_error(v, "index_out_of_range");
+  if (v->tri_bad_index) add_error(v, "file_triangle_index_out_of_range");
+  if (v->nonfinite) add_error(v, "nonfinite_vertex");
+  if (v->bad_index || v->nonfinite) { /* nothing else can be computed safely */
+    v->valid = 0;
+    return I2M_OK;
+  }
+  I2M_CALL(i2m_malloc((size_t)m->nt, sizeof *sgn, &sgn));
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)m->nt, sizeof *topo->vol, &topo->vol));
+  geometry(m, v, topo, sgn);
+  I2M_CALL_GOTO(err, out, match_faces(m, sgn, v, topo));
+  I2M_CALL_GOTO(err, out, boundary_edges(m, topo, v));
+  I2M_CALL_GOTO(err, out, vertices(m, v));
+  I2M_CALL_GOTO(err, out, derive_interfaces(m, topo));
+  v->interface_triangles = topo->iface.n;
+  I2M_CALL_GOTO(err, out, count_pairs(&topo->iface, &v->interface_pairs));
+  if (m->has_tri && !v->tri_bad_index) I2M_CALL_GOTO(err, out, compare_file(m, topo, v));
+  if (v->inverted) add_error(v, "inverted");
+  if (v->degenerate) add_error(v, "degenerate");
+  if (v->nonmanifold_faces) add_error(v, "nonmanifold_face");
+  if (v->overlapping_faces) add_error(v, "overlapping");
+  if (v->dangling) add_error(v, "dangling_vertex");
+  if (v->duplicate) add_error(v, "duplicate_vertex");
+  if (v->boundary_open_edges) add_error(v, "open_boundary");
+  if (v->file_not_interface) add_error(v, "file_triangle_not_interface");
+  if (v->interface_not_in_file) add_error(v, "interface_missing_from_file");
+  if (v->file_label_mismatch) add_error(v, "interface_label_mismatch");
+  if (v->file_duplicate) add_error(v, "duplicate_file_triangle");
+  if (v->file_flipped) add_error(v, "flipped_file_triangle");
+out:
+  v->valid = v->errors[0] == '\0';
+  i2m_free(&sgn);
+  return err;
+}
+
+void ck_topo_free(ck_topo_t *t)
+{
+  i2m_free(&t->nb);
+  i2m_free(&t->vol);
+  i2m_free(&t->iface.v);
+  i2m_free(&t->iface.lab);
+}

@@ -84,7 +84,14 @@ typedef struct {
   uint32_t t, i;           /* cavity tet and face index */
   uint32_t out;            /* 4*u+j of the outside neighbour, or I2M_DT_NONE */
   uint32_t v[4];           /* copy of tv[t] (p goes into slot i) */
+  uint32_t l[4];           /* local indices of v[] (see i2m_dt_ctx_t) */
 } i2m_dt_bface_t;
+
+/** Lock word of a vertex: 0 when free, else owner | local index << I2M_DT_LOCAL_SHIFT.  The
+ *  local index numbers the vertices of the cavity being built by the owner. */
+#define I2M_DT_OWNER_BITS 10
+#define I2M_DT_OWNER_MASK ((1u << I2M_DT_OWNER_BITS) - 1)
+#define I2M_DT_MAX_OWNERS I2M_DT_OWNER_MASK
 
 /** Per-thread context: scratch space, locks held, free-slot pool, statistics. */
 typedef struct i2m_dt_ctx {
@@ -96,7 +103,10 @@ typedef struct i2m_dt_ctx {
   uint32_t *cav; uint32_t ncav, cap_cav;          /* cavity / star tets */
   i2m_dt_bface_t *bnd; uint32_t nbnd, cap_bnd;    /* cavity boundary faces */
   uint32_t *newt; uint32_t nnew, cap_new;         /* tets created by the last operation */
-  uint32_t *held; uint32_t nheld, cap_held;       /* vertex locks held */
+  uint32_t *held; uint32_t nheld, cap_held;       /* vertex locks held = local vertices */
+  double *rows; uint32_t cap_rows;                /* [local vertex][4] translated, lifted */
+  uint32_t *cavl; uint32_t cap_cavl;              /* [cavity tet][4] local vertex indices */
+  uint32_t *etab2; uint32_t lcap;                 /* [lcap][lcap] edge table of local ids */
   struct i2m_dt_edge *etab; uint32_t ecap, stamp; /* edge table (adjacency of new tets) */
   uint32_t *pool; uint32_t npool, cap_pool;       /* this context's dead tet slots */
   uint32_t fresh_next, fresh_end;                 /* reserved range of fresh slots */

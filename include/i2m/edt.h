@@ -34,8 +34,10 @@ void i2m_edt_destroy(i2m_edt_t **e);
 
 /** Closest interface point z to p (grid frame) and its squared distance; +inf (and z = p)
  *  when there is no interface.  pair (may be NULL) receives the label indices on the two
- *  sides of the interface there, smaller first.  Thread safe. */
-double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double z[3], int pair[2]);
+ *  sides of the interface there, smaller first.  When a cheap lower bound shows that the
+ *  distance exceeds sqrt(max_d2), returns +inf without computing z (pass INFINITY to always
+ *  compute it).  Thread safe. */
+double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2]);
 
 /** Along the segment a -> b (grid frame) whose end labels differ, the point where the label
  *  first changes, to within @p tol: returns it in x and the labels on its two sides.

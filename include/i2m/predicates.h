@@ -107,44 +107,59 @@ static inline int i2m_orient3d_filter(const double a[3], const double b[3], cons
   return 0;
 }
 
-/** Filter of insphere: the sign when certified, 0 when undecided. */
-static inline int i2m_insphere_filter(const double a[3], const double b[3], const double c[3],
-                                  const double d[3], const double e[3])
+static inline double i2m_pred_max4_(double a, double b, double c, double d)
 {
-  const double ax = a[0] - e[0], ay = a[1] - e[1], az = a[2] - e[2];
-  const double bx = b[0] - e[0], by = b[1] - e[1], bz = b[2] - e[2];
-  const double cx = c[0] - e[0], cy = c[1] - e[1], cz = c[2] - e[2];
-  const double dx = d[0] - e[0], dy = d[1] - e[1], dz = d[2] - e[2];
-  /* xy-minors m(p,q) = px qy - qx py from the products pq1 = px qy, pq2 = qx py */
-  const double ab1 = ax * by, ab2 = bx * ay, ac1 = ax * cy, ac2 = cx * ay;
-  const double ad1 = ax * dy, ad2 = dx * ay, bc1 = bx * cy, bc2 = cx * by;
-  const double bd1 = bx * dy, bd2 = dx * by, cd1 = cx * dy, cd2 = dx * cy;
-  const double mab = ab1 - ab2, mac = ac1 - ac2, mad = ad1 - ad2;
-  const double mbc = bc1 - bc2, mbd = bd1 - bd2, mcd = cd1 - cd2;
+  double x = a > b ? a : b, y = c > d ? c : d;
+  return x > y ? x : y;
+}
+
+/** Filter of insphere on rows already translated by the query point e and lifted:
+ *  r = (x - ex, y - ey, z - ez, |r|^2) for a, b, c, d.  The sign when certified, else 0.
+ *  Semi-static bound: with M_x, M_y, M_z the largest |coordinate| per axis and
+ *  L = M_x^2 + M_y^2 + M_z^2, the permanent of Shewchuk's stage-A bound is at most
+ *  24 L M_x M_y M_z; 25 absorbs the rounding of every factor, so the bound stays rigorous. */
+static inline int i2m_insphere_filter_rows(const double ra[4], const double rb[4], const double rc[4],
+                                           const double rd[4])
+{
+  const double ax = ra[0], ay = ra[1], az = ra[2], bx = rb[0], by = rb[1], bz = rb[2];
+  const double cx = rc[0], cy = rc[1], cz = rc[2], dx = rd[0], dy = rd[1], dz = rd[2];
+  const double mab = ax * by - bx * ay, mac = ax * cy - cx * ay, mad = ax * dy - dx * ay;
+  const double mbc = bx * cy - cx * by, mbd = bx * dy - dx * by, mcd = cx * dy - dx * cy;
   const double dbcd = bz * mcd - cz * mbd + dz * mbc;
   const double dacd = az * mcd - cz * mad + dz * mac;
   const double dabd = az * mbd - bz * mad + dz * mab;
   const double dabc = az * mbc - bz * mac + cz * mab;
-  const double la = ax * ax + ay * ay + az * az;
-  const double lb = bx * bx + by * by + bz * bz;
-  const double lc = cx * cx + cy * cy + cz * cz;
-  const double ld = dx * dx + dy * dy + dz * dz;
-  const double det = (la * dbcd - lb * dacd) + (lc * dabd - ld * dabc);
-  /* permanent: the same tree on absolute values */
-  const double aaz = fabs(az), abz = fabs(bz), acz = fabs(cz), adz = fabs(dz);
-  const double pab = fabs(ab1) + fabs(ab2), pac = fabs(ac1) + fabs(ac2);
-  const double pad = fabs(ad1) + fabs(ad2), pbc = fabs(bc1) + fabs(bc2);
-  const double pbd = fabs(bd1) + fabs(bd2), pcd = fabs(cd1) + fabs(cd2);
-  const double pbcd = abz * pcd + acz * pbd + adz * pbc;
-  const double pacd = aaz * pcd + acz * pad + adz * pac;
-  const double pabd = aaz * pbd + abz * pad + adz * pab;
-  const double pabc = aaz * pbc + abz * pac + acz * pab;
-  const double perm = (la * pbcd + lb * pacd) + (lc * pabd + ld * pabc);
-  const double lifts = (la + lb) + (lc + ld);
+  const double det = (ra[3] * dbcd - rb[3] * dacd) + (rc[3] * dabd - rd[3] * dabc);
+  const double mx = i2m_pred_max4_(fabs(ax), fabs(bx), fabs(cx), fabs(dx));
+  const double my = i2m_pred_max4_(fabs(ay), fabs(by), fabs(cy), fabs(dy));
+  const double mz = i2m_pred_max4_(fabs(az), fabs(bz), fabs(cz), fabs(dz));
+  const double L = mx * mx + my * my + mz * mz;
+  const double perm = 25.0 * L * mx * my * mz;
   const double bound = I2M_ISP_BOUND * perm;
-  if ((fabs(det) > bound) & (perm >= I2M_ISP_PERM_MIN) & (lifts <= I2M_ISP_LIFT_MAX))
+  if ((fabs(det) > bound) & (perm >= I2M_ISP_PERM_MIN) & (L <= 0.25 * I2M_ISP_LIFT_MAX))
     return (det > 0.0) - (det < 0.0);
   return 0;
+}
+
+/** Translated, lifted row of point q for a query point e (see i2m_insphere_filter_rows). */
+static inline void i2m_insphere_row(const double q[3], const double e[3], double r[4])
+{
+  r[0] = q[0] - e[0];
+  r[1] = q[1] - e[1];
+  r[2] = q[2] - e[2];
+  r[3] = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+}
+
+/** Filter of insphere: the sign when certified, 0 when undecided. */
+static inline int i2m_insphere_filter(const double a[3], const double b[3], const double c[3],
+                                      const double d[3], const double e[3])
+{
+  double ra[4], rb[4], rc[4], rd[4];
+  i2m_insphere_row(a, e, ra);
+  i2m_insphere_row(b, e, rb);
+  i2m_insphere_row(c, e, rc);
+  i2m_insphere_row(d, e, rd);
+  return i2m_insphere_filter_rows(ra, rb, rc, rd);
 }
 
 /** Exact insphere with symbolic perturbation, for when i2m_insphere_filter declined. */

@@ -54,9 +54,11 @@ typedef struct {
 /** Default parameters (delta chosen by i2m_refine_default_delta at setup). */
 void i2m_refine_params_default(i2m_refine_params_t *p);
 
-/** The default delta for an image: 2 x the largest voxel spacing.  Interfaces are voxel
- *  staircases whose steps are one voxel high; sampling them every two voxels follows the
- *  tissue boundaries while smoothing the staircase. */
+/** The default delta for an image: max(0.8 x the smallest spacing, 0.5 x the largest).
+ *  The surface is then sampled about 1.25 times per voxel along the finest axis (so
+ *  one-voxel features and thin layers are followed and per-label volumes stay within a few
+ *  percent), but never finer than half the slice spacing of an anisotropic image, whose
+ *  staircase steps are that high anyway. */
 double i2m_refine_default_delta(const i2m_image_t *img);
 
 /** Checks parameters against the image; one clear message on error. */

@@ -15,7 +15,7 @@ void cli_usage(FILE *f)
           "Meshes a segmented 3D image (every voxel a tissue label) into a conforming tetrahedral mesh.\n"
           "  INPUT                 .nrrd .nhdr .nii .nii.gz .mha .mhd .inr .inr.gz\n"
           "  -o, --output FILE     .vtu (VTK), .mesh (Medit) or .msh (Gmsh 4.1)\n"
-          "  --delta D             surface sampling / fidelity distance in mm (default 2 x the largest spacing)\n"
+          "  --delta D             surface sampling / fidelity distance in mm (default: max(0.8 x smallest spacing, 0.5 x largest))\n"
           "  --ratio R             radius-edge bound, >= 2 (default 2)\n"
           "  --facet-angle A       minimum planar angle of interface triangles, <= 30 degrees (default 30)\n"
           "  --size S              maximum circumradius in mm (default none)\n"

@@ -162,6 +162,7 @@ i2m_err_t i2m_dt_ctx_init(i2m_dt_ctx_t *ctx, i2m_dt_t *dt, uint32_t owner, bool 
   memset(ctx, 0, sizeof *ctx);
   ctx->dt = dt;
   ctx->owner = owner ? owner : 1;
+  I2M_CHECK(ctx->owner <= I2M_DT_MAX_OWNERS, I2M_ERR_ARG, "at most %u threads per process", I2M_DT_MAX_OWNERS);
   ctx->locking = locking;
   ctx->rng = 0x9E3779B97F4A7C15ull ^ ((uint64_t)owner * 0xD1B54A32D192ED03ull);
   I2M_CALL(ctx_edges_begin(ctx, 64));
@@ -175,6 +176,9 @@ void i2m_dt_ctx_free(i2m_dt_ctx_t *ctx)
   i2m_free(&ctx->bnd);
   i2m_free(&ctx->newt);
   i2m_free(&ctx->held);
+  i2m_free(&ctx->rows);
+  i2m_free(&ctx->cavl);
+  i2m_free(&ctx->etab2);
   i2m_free(&ctx->etab);
   i2m_free(&ctx->pool);
   i2m_free(&ctx->vpool);

@@ -32,19 +32,19 @@ static inline bool vlock_take(i2m_dt_ctx_t *ctx, uint32_t v)
 {
   _Atomic uint32_t *L = &ctx->dt->vlock[v];
   uint32_t cur = atomic_load_explicit(L, memory_order_relaxed);
-  if (cur == ctx->owner) return true;
+  if ((cur & I2M_DT_OWNER_MASK) == ctx->owner) return true;
   uint32_t expected = 0;
-  if (cur == 0 && atomic_compare_exchange_strong_explicit(L, &expected, ctx->owner, memory_order_acquire,
+  if (ctx->nheld == ctx->cap_held && ctx_grow_u32(&ctx->held, &ctx->cap_held, ctx->nheld + 1) != I2M_OK) {
+    ctx->conflict_owner = 0;
+    return false;
+  }
+  uint32_t word = ctx->owner | (ctx->nheld << I2M_DT_OWNER_BITS);
+  if (cur == 0 && atomic_compare_exchange_strong_explicit(L, &expected, word, memory_order_acquire,
                                                           memory_order_relaxed)) {
-    if (ctx->nheld == ctx->cap_held && ctx_grow_u32(&ctx->held, &ctx->cap_held, ctx->nheld + 1) != I2M_OK) {
-      atomic_store_explicit(L, 0, memory_order_release);
-      ctx->conflict_owner = 0;
-      return false;
-    }
     ctx->held[ctx->nheld++] = v;
     return true;
   }
-  ctx->conflict_owner = cur ? cur : expected;
+  ctx->conflict_owner = (cur ? cur : expected) & I2M_DT_OWNER_MASK;
   return false;
 }
 

@@ -10,7 +10,7 @@ void i2m_dt_unlock_all(i2m_dt_ctx_t *ctx)
   ctx->nheld = 0;
 }
 
-/* Clears the marks of the cavity found so far and releases the locks: nothing changed. */
+/* Clears the marks of the cavity found so far and releases the vertices: nothing changed. */
 static i2m_dt_status_t cavity_abandon(i2m_dt_ctx_t *ctx, i2m_dt_status_t why)
 {
   i2m_dt_t *dt = ctx->dt;
@@ -24,20 +24,78 @@ static i2m_dt_status_t cavity_abandon(i2m_dt_ctx_t *ctx, i2m_dt_status_t why)
   return why;
 }
 
-static bool same_point(const double *a, const double *b) { return a[0] == b[0] && a[1] == b[1] && a[2] == b[2]; }
-
-static i2m_dt_status_t cavity_push(i2m_dt_ctx_t *ctx, uint32_t t)
+/* Gives vertex v a local index for this insertion: takes its lock word (a compare-and-swap
+ * in threaded runs) and caches its row translated by p and lifted.  Returns the index, -1 if
+ * another thread holds the vertex, -2 when out of memory. */
+static inline int64_t local_vertex(i2m_dt_ctx_t *ctx, uint32_t v, const double *p)
 {
-  if (ctx->ncav == ctx->cap_cav && ctx_grow_u32(&ctx->cav, &ctx->cap_cav, ctx->ncav + 1) != I2M_OK)
-    return I2M_DT_FULL;
+  _Atomic uint32_t *L = &ctx->dt->vlock[v];
+  uint32_t cur = atomic_load_explicit(L, memory_order_relaxed);
+  if ((cur & I2M_DT_OWNER_MASK) == ctx->owner) return cur >> I2M_DT_OWNER_BITS;
+  uint32_t k = ctx->nheld;
+  if (I2M_UNLIKELY(k == ctx->cap_held || k == ctx->cap_rows)) {
+    uint32_t cap = k + k / 2 + 64;
+    if (k >= (1u << (32 - I2M_DT_OWNER_BITS)) || i2m_realloc(cap, sizeof *ctx->held, &ctx->held) != I2M_OK ||
+        i2m_realloc(4 * (size_t)cap, sizeof *ctx->rows, &ctx->rows) != I2M_OK)
+      return -2;
+    ctx->cap_held = ctx->cap_rows = cap;
+  }
+  uint32_t word = ctx->owner | (k << I2M_DT_OWNER_BITS);
+  if (ctx->locking) {
+    uint32_t expected = 0;
+    if (cur != 0 || !atomic_compare_exchange_strong_explicit(L, &expected, word, memory_order_acquire,
+                                                             memory_order_relaxed)) {
+      ctx->conflict_owner = (cur ? cur : expected) & I2M_DT_OWNER_MASK;
+      return -1;
+    }
+  } else {
+    atomic_store_explicit(L, word, memory_order_relaxed);
+  }
+  ctx->held[k] = v;
+  i2m_insphere_row(i2m_dt_xyz(ctx->dt, v), p, ctx->rows + 4 * (size_t)k);
+  ctx->nheld = k + 1;
+  return k;
+}
+
+static inline uint32_t local_of(const i2m_dt_t *dt, uint32_t v)
+{
+  return atomic_load_explicit(&dt->vlock[v], memory_order_relaxed) >> I2M_DT_OWNER_BITS;
+}
+
+/* Conflict test of tet v[] (local indices l[]) against p from the cached rows; the exact
+ * evaluation with the perturbation decides what the filter cannot. */
+static inline int conflict(const i2m_dt_ctx_t *ctx, const uint32_t *v, const uint32_t *l, const double *p,
+                           i2m_gidx_t gid)
+{
+  const double *R = ctx->rows;
+  int s = i2m_insphere_filter_rows(R + 4 * l[0], R + 4 * l[1], R + 4 * l[2], R + 4 * l[3]);
+  if (I2M_LIKELY(s != 0)) return s;
+  const i2m_dt_t *dt = ctx->dt;
+  return i2m_insphere_sos_exact(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]),
+                                i2m_dt_xyz(dt, v[3]), p, i2m_dt_gid(dt, v[0]), i2m_dt_gid(dt, v[1]),
+                                i2m_dt_gid(dt, v[2]), i2m_dt_gid(dt, v[3]), gid);
+}
+
+static inline bool row_is_zero(const i2m_dt_ctx_t *ctx, uint32_t l) { return ctx->rows[4 * (size_t)l + 3] == 0.0; }
+
+static i2m_dt_status_t cavity_push(i2m_dt_ctx_t *ctx, uint32_t t, const uint32_t *l)
+{
+  if (I2M_UNLIKELY(ctx->ncav == ctx->cap_cav || ctx->ncav == ctx->cap_cavl)) {
+    uint32_t cap = ctx->ncav + ctx->ncav / 2 + 64;
+    if (i2m_realloc(cap, sizeof *ctx->cav, &ctx->cav) != I2M_OK ||
+        i2m_realloc(4 * (size_t)cap, sizeof *ctx->cavl, &ctx->cavl) != I2M_OK)
+      return I2M_DT_FULL;
+    ctx->cap_cav = ctx->cap_cavl = cap;
+  }
+  memcpy(ctx->cavl + 4 * (size_t)ctx->ncav, l, 4 * sizeof *l);
   ctx->cav[ctx->ncav++] = t;
   meta_store(ctx->dt, t, i2m_dt_meta(ctx->dt, t) | I2M_TM_MARK);
   return I2M_DT_OK;
 }
 
-static i2m_dt_status_t boundary_push(i2m_dt_ctx_t *ctx, uint32_t t, uint32_t i, uint32_t out)
+static i2m_dt_status_t boundary_push(i2m_dt_ctx_t *ctx, uint32_t t, uint32_t i, uint32_t out, const uint32_t *l)
 {
-  if (ctx->nbnd == ctx->cap_bnd) {
+  if (I2M_UNLIKELY(ctx->nbnd == ctx->cap_bnd)) {
     uint32_t cap = ctx->cap_bnd + ctx->cap_bnd / 2 + 64;
     if (i2m_realloc(cap, sizeof(i2m_dt_bface_t), &ctx->bnd) != I2M_OK) return I2M_DT_FULL;
     ctx->cap_bnd = cap;
@@ -47,38 +105,79 @@ static i2m_dt_status_t boundary_push(i2m_dt_ctx_t *ctx, uint32_t t, uint32_t i, 
   b->i = i;
   b->out = out;
   memcpy(b->v, ctx->dt->tv + 4 * (size_t)t, sizeof b->v);
+  memcpy(b->l, l, sizeof b->l);
   return I2M_DT_OK;
 }
 
-/* Breadth-first search of the tets whose circumball holds p, from a seed in conflict.
- * Locks every vertex of every cavity tet (the outside tets' vertices on the boundary faces
- * are cavity vertices, so they are locked too). */
+/* Breadth-first search of the tets whose circumballs hold p, from a seed in conflict.  Every
+ * vertex met gets a local index (and, in threaded runs, is locked); the outside tets'
+ * vertices on the boundary faces are cavity vertices, so they are locked too. */
 static i2m_dt_status_t cavity_search(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid)
 {
   i2m_dt_t *dt = ctx->dt;
+  const uint32_t *tn = dt->tn, *tv = dt->tv;
   for (uint32_t k = 0; k < ctx->ncav; k++) {
     uint32_t c = ctx->cav[k];
+    uint32_t cl[4];
+    memcpy(cl, ctx->cavl + 4 * (size_t)k, sizeof cl);
     for (uint32_t i = 0; i < 4; i++) {
-      uint32_t n = dt->tn[4 * c + i];
+      uint32_t n = tn[4 * c + i];
+      i2m_dt_status_t st;
       if (n == I2M_DT_NONE) { /* box hull: always a boundary face */
-        if (boundary_push(ctx, c, i, n) != I2M_DT_OK) return I2M_DT_FULL;
+        if ((st = boundary_push(ctx, c, i, n, cl)) != I2M_DT_OK) return st;
         continue;
       }
-      uint32_t u = n >> 2;
+      uint32_t u = n >> 2, j = n & 3;
       uint32_t m = i2m_dt_meta(dt, u);
       if (m & I2M_TM_MARK) continue;
-      const uint32_t *uv = dt->tv + 4 * (size_t)u;
-      if (tet_insphere(dt, uv, p, gid) > 0) {
+      const uint32_t *uv = tv + 4 * (size_t)u;
+      int64_t lw = local_vertex(ctx, uv[j], p);
+      if (lw < 0) return lw == -1 ? I2M_DT_ROLLBACK : I2M_DT_FULL;
+      uint32_t ul[4];
+      for (uint32_t s = 0; s < 4; s++) ul[s] = s == j ? (uint32_t)lw : local_of(dt, uv[s]);
+      if (conflict(ctx, uv, ul, p, gid) > 0) {
         if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
-        if (ctx->locking && !vlock_take(ctx, uv[n & 3])) return I2M_DT_ROLLBACK;
-        if (same_point(i2m_dt_xyz(dt, uv[n & 3]), p)) return I2M_DT_DUPLICATE;
-        if (cavity_push(ctx, u) != I2M_DT_OK) return I2M_DT_FULL;
-      } else if (boundary_push(ctx, c, i, n) != I2M_DT_OK) {
-        return I2M_DT_FULL;
+        if (row_is_zero(ctx, (uint32_t)lw)) return I2M_DT_DUPLICATE;
+        if ((st = cavity_push(ctx, u, ul)) != I2M_DT_OK) return st;
+      } else if ((st = boundary_push(ctx, c, i, n, cl)) != I2M_DT_OK) {
+        return st;
       }
     }
   }
   return I2M_DT_OK;
+}
+
+/* Links face j of new tet t, whose edge opposite the new vertex has local ends (la, lb). */
+static inline void link_local(i2m_dt_ctx_t *ctx, uint32_t t, uint32_t j, uint32_t la, uint32_t lb)
+{
+  uint32_t *e = ctx->etab2 + (la < lb ? la * ctx->lcap + lb : lb * ctx->lcap + la);
+  uint32_t face = 4 * t + j;
+  if (*e == I2M_DT_NONE) {
+    *e = face;
+  } else { /* the second visit: link both ways and leave the entry clean */
+    ctx->dt->tn[face] = *e;
+    ctx->dt->tn[*e] = face;
+    *e = I2M_DT_NONE;
+  }
+}
+
+/* The direct edge table fits cavities of up to 256 vertices; larger ones use the hash. */
+#define LOCAL_TABLE_MAX 256u
+
+static bool edge_table_ready(i2m_dt_ctx_t *ctx)
+{
+  if (ctx->nheld > LOCAL_TABLE_MAX) return false;
+  if (ctx->nheld > ctx->lcap) {
+    uint32_t cap = ctx->lcap ? ctx->lcap : 64;
+    while (cap < ctx->nheld) cap *= 2;
+    uint32_t *tab = NULL;
+    if (i2m_malloc((size_t)cap * cap, sizeof *tab, &tab) != I2M_OK) return false;
+    memset(tab, 0xFF, (size_t)cap * cap * sizeof *tab);
+    i2m_free(&ctx->etab2);
+    ctx->etab2 = tab;
+    ctx->lcap = cap;
+  }
+  return true;
 }
 
 /* Replaces the cavity by the tets joining p to its boundary faces.  Cavity slots are
@@ -91,10 +190,10 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   uint32_t extra = nb > nc ? nb - nc : 0;
   if (!ctx_ensure_slots(ctx, extra, 1)) return I2M_DT_FULL;
   if (ctx_grow_u32(&ctx->newt, &ctx->cap_new, nb) != I2M_OK) return I2M_DT_FULL;
-  if (ctx_edges_begin(ctx, 3 * nb) != I2M_OK) return I2M_DT_FULL;
-  if (nc > nb && ctx->npool + (nc - nb) > ctx->cap_pool &&
-      ctx_grow_u32(&ctx->pool, &ctx->cap_pool, ctx->npool + (nc - nb)) != I2M_OK)
-    return I2M_DT_FULL;
+  if (nc > nb && ctx_grow_u32(&ctx->pool, &ctx->cap_pool, ctx->npool + (nc - nb)) != I2M_OK) return I2M_DT_FULL;
+  if (ctx->locking && ctx_grow_u32(&ctx->held, &ctx->cap_held, ctx->nheld + 1) != I2M_OK) return I2M_DT_FULL;
+  bool direct = edge_table_ready(ctx);
+  if (!direct && ctx_edges_begin(ctx, 3 * nb) != I2M_OK) return I2M_DT_FULL;
 
   uint32_t v = ctx_vertex_slot(ctx);
   double *x = dt->xyzw + 4 * (size_t)v;
@@ -103,31 +202,27 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   x[2] = p[2];
   set_gid(dt, v, gid);
   dt->vkind[v] = kind;
-  if (ctx->locking) {
-    if (ctx_grow_u32(&ctx->held, &ctx->cap_held, ctx->nheld + 1) != I2M_OK) I2M_CHECK_ABORT(0, "out of memory");
+  dt->vtet[v] = ctx->cav[0];
+  if (ctx->locking) { /* the new vertex is ours until the caller unlocks */
     atomic_store_explicit(&dt->vlock[v], ctx->owner, memory_order_relaxed);
     ctx->held[ctx->nheld++] = v;
   }
-
+  uint32_t *tvs = dt->tv, *tns = dt->tn;
   ctx->nnew = 0;
   for (uint32_t k = 0; k < nb; k++) {
     const i2m_dt_bface_t *b = &ctx->bnd[k];
-    uint32_t t;
-    if (k < nc) {
-      t = ctx->cav[k];
-      meta_store(dt, t, meta_reborn(i2m_dt_meta(dt, t)));
-    } else {
-      t = ctx_tet_slot(ctx);
-      meta_store(dt, t, meta_reborn(i2m_dt_meta(dt, t)) & ~I2M_TM_DEAD);
-    }
-    uint32_t *tv = dt->tv + 4 * (size_t)t;
+    uint32_t t = k < nc ? ctx->cav[k] : ctx_tet_slot(ctx);
+    meta_store(dt, t, meta_reborn(i2m_dt_meta(dt, t)));
+    uint32_t *tv = tvs + 4 * (size_t)t;
     memcpy(tv, b->v, sizeof b->v);
     tv[b->i] = v;
-    dt->tn[4 * t + b->i] = b->out;
-    if (b->out != I2M_DT_NONE) dt->tn[b->out] = 4 * t + b->i;
+    tns[4 * (size_t)t + b->i] = b->out;
+    if (b->out != I2M_DT_NONE) tns[b->out] = 4 * t + b->i;
     for (uint32_t j = 0; j < 4; j++) {
-      dt->vtet[tv[j]] = t;
-      if (j != b->i) ctx_edge_link(ctx, t, b->i, j);
+      if (j == b->i) continue;
+      dt->vtet[b->v[j]] = t;
+      if (direct) link_local(ctx, t, j, b->l[I2M_OTHER2[b->i][j][0]], b->l[I2M_OTHER2[b->i][j][1]]);
+      else ctx_edge_link(ctx, t, b->i, j);
     }
     ctx->newt[ctx->nnew++] = t;
   }
@@ -147,25 +242,29 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
                               uint32_t seed, uint32_t seed_meta, uint32_t *vout)
 {
   i2m_dt_t *dt = ctx->dt;
+  I2M_CHECK_ABORT(ctx->nheld == 0, "i2m_dt_insert: the previous operation's vertices are still held");
   ctx->ncav = ctx->nbnd = ctx->nnew = 0;
   const uint32_t *sv = dt->tv + 4 * (size_t)seed;
-  if (ctx->locking) {
-    uint32_t v4[4];
-    memcpy(v4, sv, sizeof v4); /* read before the locks: verified below */
-    if (!vlock_take_tet(ctx, v4)) return cavity_abandon(ctx, I2M_DT_ROLLBACK);
-    if (memcmp(v4, sv, sizeof v4) != 0) return cavity_abandon(ctx, I2M_DT_STALE);
+  uint32_t v4[4], l4[4];
+  memcpy(v4, sv, sizeof v4); /* threaded: read before the locks, verified below */
+  for (int i = 0; i < 4; i++) {
+    int64_t l = local_vertex(ctx, v4[i], p);
+    if (l < 0) return cavity_abandon(ctx, l == -1 ? I2M_DT_ROLLBACK : I2M_DT_FULL);
+    l4[i] = (uint32_t)l;
   }
+  if (ctx->locking && memcmp(v4, sv, sizeof v4) != 0) return cavity_abandon(ctx, I2M_DT_STALE);
   uint32_t m = i2m_dt_meta(dt, seed);
   if ((m & I2M_TM_DEAD) || (seed_meta != I2M_DT_NONE && m != seed_meta)) return cavity_abandon(ctx, I2M_DT_STALE);
   if (m & I2M_TM_FROZEN) return cavity_abandon(ctx, I2M_DT_FROZEN);
   for (int i = 0; i < 4; i++)
-    if (same_point(i2m_dt_xyz(dt, sv[i]), p)) return cavity_abandon(ctx, I2M_DT_DUPLICATE);
-  if (tet_insphere(dt, sv, p, gid) <= 0) return cavity_abandon(ctx, I2M_DT_NOT_IN_CONFLICT);
-  i2m_dt_status_t st = cavity_push(ctx, seed);
+    if (row_is_zero(ctx, l4[i])) return cavity_abandon(ctx, I2M_DT_DUPLICATE);
+  if (conflict(ctx, v4, l4, p, gid) <= 0) return cavity_abandon(ctx, I2M_DT_NOT_IN_CONFLICT);
+  i2m_dt_status_t st = cavity_push(ctx, seed, l4);
   if (st == I2M_DT_OK) st = cavity_search(ctx, p, gid);
   if (st == I2M_DT_OK) st = cavity_fill(ctx, p, gid, kind, vout);
   if (st != I2M_DT_OK) return cavity_abandon(ctx, st);
   ctx->ncav = ctx->nbnd = 0;
+  if (!ctx->locking) i2m_dt_unlock_all(ctx); /* sequential: only the local numbering to undo */
   return I2M_DT_OK;
 }
 

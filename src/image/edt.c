@@ -249,7 +249,7 @@ static double closest_on_voxel_faces(const i2m_image_t *img, const int64_t b[3],
   return best;
 }
 
-double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double z[3], int pair[2])
+double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2])
 {
   if (e->nboundary == 0) {
     memcpy(z, p, 3 * sizeof *z);
@@ -258,15 +258,28 @@ double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double z[3], int p
   }
   const i2m_image_t *img = e->img;
   int64_t c[3];
+  bool inside = true;
   for (int a = 0; a < 3; a++) { /* voxel of p's projection on the box K */
     double u = floor(p[a] / img->spacing[a] + 0.5);
     int64_t lo = e->lo[a], hi = e->lo[a] + e->m[a] - 1;
+    inside = inside && u >= (double)lo && u <= (double)hi;
     c[a] = u < (double)lo ? lo : u > (double)hi ? hi : (int64_t)u;
   }
   int32_t f = e->ft[((c[2] - e->lo[2]) * e->m[1] + (c[1] - e->lo[1])) * e->m[0] + (c[0] - e->lo[0])];
   uint32_t fc[3];
   box_coords(e, (uint32_t)f, fc);
   int64_t b[3] = {e->lo[0] + fc[0], e->lo[1] + fc[1], e->lo[2] + fc[2]};
+  if (inside && isfinite(max_d2)) {
+    /* b is the boundary voxel nearest to the centre of p's voxel; every interface point is
+     * at least |centre(c) - centre(b)| - 2 x the half diagonal away from p */
+    double dc2 = 0, h2 = 0;
+    for (int a = 0; a < 3; a++) {
+      dc2 += i2m_sq((double)(c[a] - b[a]) * img->spacing[a]);
+      h2 += 0.25 * img->spacing[a] * img->spacing[a];
+    }
+    double lb = sqrt(dc2) - 2.0 * sqrt(h2);
+    if (lb > 0 && lb * lb > max_d2) return INFINITY;
+  }
   return closest_on_voxel_faces(img, b, p, z, pair);
 }
 

@@ -101,7 +101,7 @@ static bool ball_meets_interface(const i2m_refine_t *r, const tet_info_t *ti, do
   *d2 = INFINITY;
   if (!isfinite(ti->r2)) return false;
   int pair[2];
-  *d2 = i2m_edt_closest(r->edt, ti->cc, z, pair);
+  *d2 = i2m_edt_closest(r->edt, ti->cc, fmax(ti->r2, r->four_delta2), z, pair);
   *patch = patch_key(pair[0], pair[1]);
   return *d2 <= ti->r2;
 }

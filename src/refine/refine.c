@@ -15,8 +15,9 @@ void i2m_refine_params_default(i2m_refine_params_t *p)
 
 double i2m_refine_default_delta(const i2m_image_t *img)
 {
-  double s = fmax(img->spacing[0], fmax(img->spacing[1], img->spacing[2]));
-  return 2.0 * s;
+  double lo = fmin(img->spacing[0], fmin(img->spacing[1], img->spacing[2]));
+  double hi = fmax(img->spacing[0], fmax(img->spacing[1], img->spacing[2]));
+  return fmax(0.8 * lo, 0.5 * hi);
 }
 
 static void world_bounds(const i2m_image_t *img, double lo[3], double hi[3])

@@ -310,12 +310,69 @@ static void dist_summary(float *d, int64_t n, double sum, ck_dist_t *out)
   out->p99 = fpercentile(d, n, 0.99);
 }
 
+/* Both directed distance sets with the surface area each sample stands for, pooled for the
+ * two-sided percentile. */
+typedef struct {
+  float *d[2], *w[2];
+  int64_t n[2];
+} pooled_t;
+
+static double tri_area(const double *a, const double *b, const double *c)
+{
+  double u[3], v[3];
+  for (int k = 0; k < 3; k++) {
+    u[k] = b[k] - a[k];
+    v[k] = c[k] - a[k];
+  }
+  double x = u[1] * v[2] - u[2] * v[1], y = u[2] * v[0] - u[0] * v[2], z = u[0] * v[1] - u[1] * v[0];
+  return 0.5 * sqrt(x * x + y * y + z * z);
+}
+
+/* The q-quantile of the pooled, area-weighted distances (histogram of 2^20 bins up to the
+ * largest distance: exact to max / 2^20). */
+static double pooled_quantile(const pooled_t *p, double q)
+{
+  double dmax = 0, wsum = 0;
+  for (int s = 0; s < 2; s++)
+    for (int64_t i = 0; i < p->n[s]; i++) {
+      dmax = fmax(dmax, p->d[s][i]);
+      wsum += p->w[s][i];
+    }
+  if (!(dmax > 0) || !(wsum > 0)) return 0.0;
+  enum { NB = 1 << 20 };
+  double *h = calloc(NB, sizeof *h);
+  if (!h) return NAN;
+  for (int s = 0; s < 2; s++)
+    for (int64_t i = 0; i < p->n[s]; i++) {
+      int64_t b = (int64_t)((double)p->d[s][i] / dmax * (NB - 1));
+      h[b < 0 ? 0 : b >= NB ? NB - 1 : b] += p->w[s][i];
+    }
+  double acc = 0, x = dmax;
+  for (int64_t b = 0; b < NB; b++) {
+    acc += h[b];
+    if (acc >= q * wsum) {
+      x = (double)(b + 1) / (NB - 1) * dmax;
+      break;
+    }
+  }
+  free(h);
+  return fmin(x, dmax);
+}
+
+static void pooled_free(pooled_t *p)
+{
+  for (int s = 0; s < 2; s++) {
+    i2m_free(&p->d[s]);
+    i2m_free(&p->w[s]);
+  }
+}
+
 /* mesh -> image */
 static i2m_err_t mesh_to_image(const tctx_t *tc, int64_t ntri, const grid_t *fg, const fctx_t *fc,
-                               double h, const i2m_image_t *img, ck_fidelity_t *f)
+                               double h, const i2m_image_t *img, ck_fidelity_t *f, pooled_t *pool)
 {
   int64_t *off = NULL, *arg = NULL;
-  float *d = NULL;
+  float *d = NULL, *w = NULL;
   i2m_err_t err = I2M_OK;
   I2M_CALL(i2m_malloc((size_t)ntri + 1, sizeof *off, &off));
   off[0] = 0;
@@ -326,7 +383,13 @@ static i2m_err_t mesh_to_image(const tctx_t *tc, int64_t ntri, const grid_t *fg,
   }
   int64_t ns = off[ntri];
   I2M_CALL_GOTO(err, out, i2m_malloc((size_t)ns, sizeof *d, &d));
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)ns, sizeof *w, &w));
   I2M_CALL_GOTO(err, out, i2m_malloc((size_t)ntri, sizeof *arg, &arg));
+  for (int64_t t = 0; t < ntri; t++) { /* each sample stands for an equal share of its triangle */
+    const int32_t *v = tc->v + 3 * t;
+    float share = (float)(tri_area(tc->g + 3 * v[0], tc->g + 3 * v[1], tc->g + 3 * v[2]) / (double)(off[t + 1] - off[t]));
+    for (int64_t s = off[t]; s < off[t + 1]; s++) w[s] = share;
+  }
   double sum = 0.0;
   CK_OMP("omp parallel for schedule(dynamic, 64) reduction(+ : sum)")
   for (int64_t t = 0; t < ntri; t++) {
@@ -370,36 +433,53 @@ static i2m_err_t mesh_to_image(const tctx_t *tc, int64_t ntri, const grid_t *fg,
   }
   f->mesh_samples = ns;
   dist_summary(d, ns, sum, &f->mesh_to_image);
+  pool->d[0] = d;
+  pool->w[0] = w;
+  pool->n[0] = ns;
+  d = w = NULL;
 out:
   i2m_free(&off);
   i2m_free(&arg);
   i2m_free(&d);
+  i2m_free(&w);
   return err;
 }
 
-/* Query points of an image face: centre and four corners. */
-static void face_points(const i2m_image_t *img, const vface_t *f, double p[5][3])
+/* Points of an image face: nine sample points (centres of a 3 x 3 split, each standing for
+ * a ninth of the face) then the four corners (for the maximum only). */
+#define FACE_SAMPLES 9
+#define FACE_POINTS 13
+static void face_points(const i2m_image_t *img, const vface_t *f, double p[FACE_POINTS][3])
 {
   int a = f->axis, b = (a + 1) % 3, c = (a + 2) % 3;
   double x[3];
   for (int k = 0; k < 3; k++) x[k] = f->c[k] * img->spacing[k];
   x[a] += 0.5 * img->spacing[a];
-  static const double sb[5] = {0, -0.5, 0.5, -0.5, 0.5}, sc[5] = {0, -0.5, -0.5, 0.5, 0.5};
-  for (int q = 0; q < 5; q++) {
+  static const double t[3] = {-1.0 / 3.0, 0.0, 1.0 / 3.0};
+  static const double sb[4] = {-0.5, 0.5, -0.5, 0.5}, sc[4] = {-0.5, -0.5, 0.5, 0.5};
+  for (int q = 0; q < FACE_POINTS; q++) {
     memcpy(p[q], x, sizeof x);
-    p[q][b] += sb[q] * img->spacing[b];
-    p[q][c] += sc[q] * img->spacing[c];
+    double ub = q < FACE_SAMPLES ? t[q % 3] : sb[q - FACE_SAMPLES];
+    double uc = q < FACE_SAMPLES ? t[q / 3] : sc[q - FACE_SAMPLES];
+    p[q][b] += ub * img->spacing[b];
+    p[q][c] += uc * img->spacing[c];
   }
 }
 
 #define CK_CHUNK 1024
 
+/* Image -> mesh: every face's nine samples go to the distribution (each weighing a ninth of
+ * the face's area); its corners count for the maximum. */
 static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const grid_t *tg,
                                const tctx_t *tc, const i2m_image_t *img, ck_fidelity_t *f,
-                               int64_t *worst)
+                               int64_t *worst, pooled_t *pool)
 {
-  float *d = NULL;
-  I2M_CALL(i2m_malloc((size_t)nf, sizeof *d, &d));
+  float *d = NULL, *w = NULL, *fmaxd = NULL;
+  int64_t ns = nf * FACE_SAMPLES;
+  i2m_err_t err = I2M_OK;
+  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)ns, sizeof *d, &d));
+  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)ns, sizeof *w, &w));
+  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)nf, sizeof *fmaxd, &fmaxd));
   double sum = 0.0;
   int64_t nchunk = (nf + CK_CHUNK - 1) / CK_CHUNK;
   CK_OMP("omp parallel for schedule(dynamic, 4) reduction(+ : sum)")
@@ -408,32 +488,38 @@ static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const grid_t *t
     int64_t hint = -1;
     int64_t end = (ch + 1) * CK_CHUNK < nf ? (ch + 1) * CK_CHUNK : nf;
     for (int64_t i = ch * CK_CHUNK; i < end; i++) {
-      double p[5][3], m = 0.0;
+      double p[FACE_POINTS][3], m = 0.0;
+      int ax = faces[i].axis;
+      float share = (float)(img->spacing[(ax + 1) % 3] * img->spacing[(ax + 2) % 3] / FACE_SAMPLES);
       face_points(img, faces + i, p);
-      for (int q = 0; q < 5; q++) {
+      for (int q = 0; q < FACE_POINTS; q++) {
         double ub = isfinite(pd) ? pd + sqrt(i2m_sq(p[q][0] - prev[0]) + i2m_sq(p[q][1] - prev[1]) +
                                              i2m_sq(p[q][2] - prev[2]))
                                  : INFINITY;
         pd = grid_nearest(tg, p[q], ub, tri_dist2, tc, &hint);
         memcpy(prev, p[q], sizeof prev);
         m = fmax(m, pd);
+        if (q < FACE_SAMPLES) {
+          d[i * FACE_SAMPLES + q] = (float)pd;
+          w[i * FACE_SAMPLES + q] = share;
+          sum += pd;
+        }
       }
-      d[i] = (float)m;
-      sum += m;
+      fmaxd[i] = (float)m;
     }
   }
   *worst = -1;
   double wmax = -1;
   for (int64_t i = 0; i < nf; i++)
-    if (d[i] > wmax) {
-      wmax = d[i];
+    if (fmaxd[i] > wmax) {
+      wmax = fmaxd[i];
       *worst = i;
     }
   if (*worst >= 0) { /* recompute the worst exactly (in double) and locate it */
-    double p[5][3], m = -1;
+    double p[FACE_POINTS][3], m = -1;
     int qm = 0;
     face_points(img, faces + *worst, p);
-    for (int q = 0; q < 5; q++) {
+    for (int q = 0; q < FACE_POINTS; q++) {
       double x = grid_nearest(tg, p[q], INFINITY, tri_dist2, tc, NULL);
       if (x > m) {
         m = x;
@@ -444,9 +530,16 @@ static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const grid_t *t
     i2m_image_grid_to_world(img, p[qm], f->image_to_mesh.where);
   }
   f->image_faces = nf;
-  dist_summary(d, nf, sum, &f->image_to_mesh);
+  dist_summary(d, ns, sum, &f->image_to_mesh);
+  pool->d[1] = d;
+  pool->w[1] = w;
+  pool->n[1] = ns;
+  d = w = NULL;
+fail:
   i2m_free(&d);
-  return I2M_OK;
+  i2m_free(&w);
+  i2m_free(&fmaxd);
+  return err;
 }
 
 /* ---- 6-connected components of the image: runs along i, union-find over runs ---- */
@@ -707,6 +800,7 @@ i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image
   int64_t nf = 0, worst = -1;
   grid_t fg = {0}, tg = {0};
   runs_t runs = {0};
+  pooled_t pool = {{NULL, NULL}, {NULL, NULL}, {0, 0}};
   fctx_t fc = {img, NULL, NULL};
   i2m_err_t err = I2M_OK;
   memset(f, 0, sizeof *f);
@@ -730,9 +824,9 @@ i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image
   I2M_CALL_GOTO(err, out, build_face_grid(img, &fc, nf, &fg));
   I2M_CALL_GOTO(err, out, build_tri_grid(&tc, topo->iface.n, f->min_spacing, &tg));
   double t0 = i2m_wtime();
-  I2M_CALL_GOTO(err, out, mesh_to_image(&tc, topo->iface.n, &fg, &fc, f->sample_spacing, img, f));
+  I2M_CALL_GOTO(err, out, mesh_to_image(&tc, topo->iface.n, &fg, &fc, f->sample_spacing, img, f, &pool));
   double t1 = i2m_wtime();
-  I2M_CALL_GOTO(err, out, image_to_mesh(faces, nf, &tg, &tc, img, f, &worst));
+  I2M_CALL_GOTO(err, out, image_to_mesh(faces, nf, &tg, &tc, img, f, &worst, &pool));
   double t2 = i2m_wtime();
   I2M_CALL_GOTO(err, out, image_components(img, &runs));
   double t3 = i2m_wtime();
@@ -743,7 +837,9 @@ i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image
   I2M_CALL_GOTO(err, out, label_table(m, topo, img, &runs, f));
   ck_dist_t *a = &f->mesh_to_image, *b = &f->image_to_mesh, *t = &f->two_sided;
   *t = a->max >= b->max ? *a : *b;
-  t->p99 = fmax(a->p99, b->p99);
+  /* two-sided distribution: both directed distance sets pooled, each sample weighted by the
+   * surface area it stands for (mesh triangles and image faces alike) */
+  t->p99 = pooled_quantile(&pool, 0.99);
   t->count = a->count + b->count;
   t->mean = t->count ? (a->mean * (double)a->count + b->mean * (double)b->count) / (double)t->count : 0;
 out:
@@ -753,6 +849,7 @@ out:
   grid_free(&fg);
   grid_free(&tg);
   runs_free(&runs);
+  pooled_free(&pool);
   return err;
 }
 

@@ -63,10 +63,11 @@ i2m_err_t i2m_image_read_format(const char *path, i2m_image_t **out, i2m_image_f
 /** Short lower-case name of a format: "nrrd", "nifti", "metaimage", "inr" or "unknown". */
 const char *i2m_image_format_name(i2m_image_format_t format);
 
-/** Builds an image from raw label values (int64, i fastest) with the given geometry
- *  (dir may be NULL for identity).  The values are copied. */
+/** Builds an image from raw label values (int64, i fastest) with the given geometry: dir is
+ *  the direction matrix as 9 values, row by row (dir[3r+c] = world component r of index
+ *  axis c), or NULL for identity.  The values are copied. */
 i2m_err_t i2m_image_create_from_values(const int64_t n[3], const double spacing[3],
-                                       const double origin[3], const double dir[3][3],
+                                       const double origin[3], const double *dir,
                                        const int64_t *values, i2m_image_t **out);
 
 /** Frees an image; accepts NULL; sets *img = NULL. */

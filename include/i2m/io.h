@@ -22,6 +22,10 @@ typedef enum { I2M_FORMAT_UNKNOWN = 0, I2M_FORMAT_VTU, I2M_FORMAT_MEDIT, I2M_FOR
 /** Format for a file name (by extension, case-insensitive); I2M_FORMAT_UNKNOWN if none. */
 i2m_format_t i2m_format_from_path(const char *path);
 
+/** Checks before any work that @p path can be written: a known extension, an existing
+ *  writable directory, not a directory itself.  Writes nothing. */
+i2m_err_t i2m_mesh_check_writable(const char *path);
+
 /** Writes @p m to @p path in the format given by its extension.  Not collective.
  *  On error the message names the file and the problem (unknown extension, disk full). */
 i2m_err_t i2m_mesh_write(const i2m_tetmesh_t *m, const char *path);

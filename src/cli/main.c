@@ -25,7 +25,7 @@ typedef struct {
 static void phase_begin(run_t *r, const char *what)
 {
   r->tphase = i2m_wtime();
-  i2m_info("i2m: %s", what);
+  i2m_debug("i2m: %s", what);
 }
 static void phase_end(run_t *r, int phase) { r->rep.phase_seconds[phase] = i2m_wtime() - r->tphase; }
 

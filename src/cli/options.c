@@ -155,7 +155,6 @@ i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o)
   if (o->help || o->version) return I2M_OK;
   I2M_CHECK(o->input, I2M_ERR_ARG, "no input image given (usage: i2m INPUT -o OUTPUT; see i2m --help)");
   I2M_CHECK(o->output, I2M_ERR_ARG, "no output file given: add -o OUTPUT.vtu, .mesh or .msh");
-  I2M_CHECK(i2m_format_from_path(o->output) != I2M_FORMAT_UNKNOWN, I2M_ERR_ARG,
-            "%s: unknown output format; use a .vtu, .mesh or .msh file name", o->output);
+  I2M_CALL(i2m_mesh_check_writable(o->output));
   return I2M_OK;
 }

@@ -1,6 +1,8 @@
 /* Geometry layer: circumcentres and quality measures in double precision (REFERENCE §3.7). */
 #include "i2m/geometry.h"
 
+#include "expansion.h"
+
 #include <math.h>
 
 static void sub3(const double a[3], const double b[3], double r[3])
@@ -17,6 +19,77 @@ static void cross3(const double a[3], const double b[3], double r[3])
 }
 static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
+/* ---- double-double arithmetic (about 106 bits) from the error-free transformations, for
+ * the circumcentres of nearly flat tets, whose plain evaluation loses every digit ---- */
+typedef struct {
+  double hi, lo;
+} dd_t;
+
+static dd_t dd_norm(double hi, double lo)
+{
+  dd_t r;
+  i2m_ex_fast_two_sum(hi, lo, &r.hi, &r.lo);
+  return r;
+}
+static dd_t dd_add(dd_t a, dd_t b)
+{
+  double s, e;
+  i2m_ex_two_sum(a.hi, b.hi, &s, &e);
+  return dd_norm(s, e + a.lo + b.lo);
+}
+static dd_t dd_neg(dd_t a) { return (dd_t){-a.hi, -a.lo}; }
+static dd_t dd_sub(dd_t a, dd_t b) { return dd_add(a, dd_neg(b)); }
+static dd_t dd_mul(dd_t a, dd_t b)
+{
+  double p, e;
+  i2m_ex_two_product(a.hi, b.hi, &p, &e);
+  return dd_norm(p, e + a.hi * b.lo + a.lo * b.hi);
+}
+static dd_t dd_diff(double a, double b) /* a - b, exactly */
+{
+  double x = a - b;
+  return dd_norm(x, i2m_ex_two_diff_tail(a, b, x));
+}
+static double dd_div(dd_t a, dd_t b) /* to double precision */
+{
+  double q1 = a.hi / b.hi;
+  dd_t r = dd_sub(a, dd_mul((dd_t){q1, 0}, b));
+  return q1 + r.hi / b.hi;
+}
+
+/* c - a = (|u|^2 (v x w) + |v|^2 (w x u) + |w|^2 (u x v)) / (2 u.(v x w)) in double-double. */
+static int circumcenter_dd(const double a[3], const double b[3], const double c[3], const double d[3], double cc[3],
+                           double *r2)
+{
+  dd_t u[3], v[3], w[3], lu = {0, 0}, lv = {0, 0}, lw = {0, 0};
+  for (int k = 0; k < 3; k++) {
+    u[k] = dd_diff(b[k], a[k]);
+    v[k] = dd_diff(c[k], a[k]);
+    w[k] = dd_diff(d[k], a[k]);
+    lu = dd_add(lu, dd_mul(u[k], u[k]));
+    lv = dd_add(lv, dd_mul(v[k], v[k]));
+    lw = dd_add(lw, dd_mul(w[k], w[k]));
+  }
+  dd_t vw[3], wu[3], uv[3], den = {0, 0};
+  for (int k = 0; k < 3; k++) {
+    int i = (k + 1) % 3, j = (k + 2) % 3;
+    vw[k] = dd_sub(dd_mul(v[i], w[j]), dd_mul(v[j], w[i]));
+    wu[k] = dd_sub(dd_mul(w[i], u[j]), dd_mul(w[j], u[i]));
+    uv[k] = dd_sub(dd_mul(u[i], v[j]), dd_mul(u[j], v[i]));
+  }
+  for (int k = 0; k < 3; k++) den = dd_add(den, dd_mul(u[k], vw[k]));
+  den = dd_add(den, den);
+  if (den.hi == 0) return -1;
+  double x[3];
+  for (int k = 0; k < 3; k++) {
+    dd_t num = dd_add(dd_add(dd_mul(lu, vw[k]), dd_mul(lv, wu[k])), dd_mul(lw, uv[k]));
+    x[k] = dd_div(num, den);
+    cc[k] = a[k] + x[k];
+  }
+  *r2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
+  return isfinite(*r2) ? 0 : -1;
+}
+
 int i2m_tet_circumcenter(const double a[3], const double b[3], const double c[3], const double d[3],
                          double cc[3], double *r2)
 {
@@ -31,7 +104,8 @@ int i2m_tet_circumcenter(const double a[3], const double b[3], const double c[3]
   double den = 2.0 * dot3(u, vw);
   double lu = dot3(u, u), lv = dot3(v, v), lw = dot3(w, w);
   double scale = lu + lv + lw;
-  if (!(fabs(den) > 1e-300) || !(fabs(den) > 1e-14 * scale * sqrt(scale))) {
+  if (!(fabs(den) > 1e-8 * scale * sqrt(scale))) { /* nearly flat: double precision is not enough */
+    if (circumcenter_dd(a, b, c, d, cc, r2) == 0) return 0;
     cc[0] = cc[1] = cc[2] = 1e300;
     *r2 = INFINITY;
     return -1;

@@ -77,7 +77,7 @@ static int cmp_i64(const void *a, const void *b)
 }
 
 i2m_err_t i2m_image_create_from_values(const int64_t n[3], const double spacing[3],
-                                       const double origin[3], const double dir[3][3],
+                                       const double origin[3], const double *dir,
                                        const int64_t *values, i2m_image_t **out)
 {
   i2m_image_t *img = NULL;
@@ -92,7 +92,7 @@ i2m_err_t i2m_image_create_from_values(const int64_t n[3], const double spacing[
     img->spacing[a] = spacing[a];
     img->origin[a] = origin ? origin[a] : 0.0;
     if (dir)
-      for (int b = 0; b < 3; b++) img->dir[a][b] = dir[a][b];
+      for (int b = 0; b < 3; b++) img->dir[a][b] = dir[3 * a + b];
   }
   size_t nvox = (size_t)(n[0] * n[1] * n[2]);
   m.cap = 1024;

@@ -7,6 +7,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #define IO_BUF_BYTES ((size_t)8 << 20)
 
@@ -181,6 +183,31 @@ static i2m_err_t check_mesh(const i2m_tetmesh_t *m, const char *path)
     I2M_CHECK(m->tri[i] >= 0 && m->tri[i] < m->nv, I2M_ERR_INTERNAL,
               "%s: triangle %lld refers to vertex %d of %lld", path, (long long)(i / 3),
               (int)m->tri[i], (long long)m->nv);
+  return I2M_OK;
+}
+
+i2m_err_t i2m_mesh_check_writable(const char *path)
+{
+  I2M_CHECK(i2m_format_from_path(path) != I2M_FORMAT_UNKNOWN, I2M_ERR_ARG,
+            "%s: unknown output format; use a .vtu, .mesh or .msh file name", path);
+  struct stat st;
+  if (stat(path, &st) == 0) {
+    I2M_CHECK(!S_ISDIR(st.st_mode), I2M_ERR_IO, "%s: is a directory, not an output file", path);
+    I2M_CHECK(access(path, W_OK) == 0, I2M_ERR_IO, "%s: cannot write: %s", path, strerror(errno));
+    return I2M_OK;
+  }
+  char dir[4096];
+  const char *slash = strrchr(path, '/');
+  size_t n = slash ? (size_t)(slash - path) : 0;
+  I2M_CHECK(n < sizeof dir, I2M_ERR_IO, "%s: path too long", path);
+  if (n == 0) snprintf(dir, sizeof dir, "%s", slash ? "/" : ".");
+  else {
+    memcpy(dir, path, n);
+    dir[n] = '\0';
+  }
+  I2M_CHECK(stat(dir, &st) == 0 && S_ISDIR(st.st_mode), I2M_ERR_IO,
+            "%s: cannot write: the directory %s does not exist", path, dir);
+  I2M_CHECK(access(dir, W_OK) == 0, I2M_ERR_IO, "%s: cannot write into %s: %s", path, dir, strerror(errno));
   return I2M_OK;
 }
 

@@ -174,11 +174,13 @@ int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a)
   }
   for (uint32_t i = 0; i < 4; i++) { /* R5, R6 */
     int rule = facet_bad(r, t, i);
-    if (rule && facet_action(r, t, i, a)) {
+    if (!rule) continue;
+    if (facet_action(r, t, i, a)) {
       a->kind = I2M_VK_SURFACE;
       a->rule = rule;
       return 1;
     }
+    w->st.failed++; /* no surface centre could be placed: counted, never silent */
   }
   if (!in_box(dt, ti->cc)) return 0;
   if ((meets && ti->r2 >= r->four_delta2) || (ti->label != 0 && volume_bad(r, t, ti))) { /* R2, R3, R4 */

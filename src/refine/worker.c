@@ -71,7 +71,7 @@ static i2m_err_t apply_r7(i2m_refine_worker_t *w, uint32_t zv)
   i2m_dt_t *dt = w->r->dt;
   I2M_CALL(vgrid_collect_within(&w->r->freev, dt, i2m_dt_xyz(dt, zv), 2.0 * w->r->p.delta, &w->near, &w->nnear,
                                 &w->cap_near));
-  qsort(w->near, w->nnear, sizeof *w->near, cmp_u32);
+  if (w->nnear > 1) qsort(w->near, w->nnear, sizeof *w->near, cmp_u32);
   uint32_t prev = I2M_DT_NONE;
   for (uint32_t k = 0; k < w->nnear; k++) {
     uint32_t v = w->near[k];
@@ -95,7 +95,7 @@ static i2m_err_t apply_r7(i2m_refine_worker_t *w, uint32_t zv)
 
 static i2m_err_t keep_created(i2m_refine_worker_t *w)
 {
-  I2M_CALL(grow_u32(&w->created, &w->cap_created, w->ctx.nnew));
+  I2M_CALL(grow_u32(&w->created, &w->cap_created, w->ctx.nnew + 1));
   memcpy(w->created, w->ctx.newt, w->ctx.nnew * sizeof *w->created);
   w->ncreated = w->ctx.nnew;
   return I2M_OK;

@@ -157,7 +157,7 @@ static i2m_tetmesh_t *voxel_mesh(const i2m_image_t *img, int64_t drop, const dou
   return m;
 }
 
-static i2m_image_t *make_image(const int64_t n[3], const double sp[3], const double dir[3][3],
+static i2m_image_t *make_image(const int64_t n[3], const double sp[3], const double *dir,
                                int64_t (*fn)(int64_t, int64_t, int64_t))
 {
   int64_t *v = malloc((size_t)(n[0] * n[1] * n[2]) * sizeof *v);
@@ -189,7 +189,7 @@ static int64_t with_speck(int64_t i, int64_t j, int64_t k)
 
 static const int64_t N_SMALL[3] = {6, 5, 4};
 static const double SP_SMALL[3] = {1.0, 0.5, 2.0};
-static const double DIR_FLIP_Y[3][3] = {{1, 0, 0}, {0, -1, 0}, {0, 0, 1}};
+static const double DIR_FLIP_Y[9] = {1, 0, 0, 0, -1, 0, 0, 0, 1};
 
 static char tmpdir[256];
 
@@ -709,7 +709,7 @@ static int write_big(const char *image, const char *out, int64_t step)
   double g[3] = {(double)(step - 1) / 2 * img->spacing[0], (double)(step - 1) / 2 * img->spacing[1], 0};
   double o[3];
   i2m_image_grid_to_world(img, g, o);
-  int rc = i2m_image_create_from_values(n, sp, o, (const double(*)[3])img->dir, v, &sub) != I2M_OK;
+  int rc = i2m_image_create_from_values(n, sp, o, &img->dir[0][0], v, &sub) != I2M_OK;
   free(v);
   if (!rc) {
     double t0 = i2m_wtime();

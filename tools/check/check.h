@@ -190,6 +190,7 @@ typedef struct {
   ck_fidelity_t fidelity;
   /* thresholds (NAN / -1 when not given) */
   double max_ratio, min_facet_angle, facet_exceptions, max_hausdorff, max_volume_error;
+  double max_mesh_to_image, max_p99;
   int64_t volume_min_voxels, require_labels;
   int nviol;
   char viol[CK_MAX_VIOL][256];

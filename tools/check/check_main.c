@@ -20,6 +20,8 @@ static const char *USAGE =
     "  --min-facet-angle DEG         planar angles of interface triangles >= DEG\n"
     "  --facet-angle-exceptions F    ... except a fraction F of the triangles (default 0)\n"
     "  --max-hausdorff MM            two-sided mesh/image interface distance <= MM (--image)\n"
+    "  --max-mesh-to-image MM        distance from every mesh interface point to the image's <= MM\n"
+    "  --max-p99 MM                  99th percentile of the two-sided distance <= MM (--image)\n"
     "  --max-volume-error PCT        |volume error| <= PCT for labels of >= N voxels (--image)\n"
     "  --volume-min-voxels N         N for --max-volume-error (default 10000)\n"
     "  --require-labels N            every label of >= N voxels is in the mesh (--image)\n"
@@ -49,6 +51,7 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
 {
   memset(o, 0, sizeof *o);
   r->max_ratio = r->min_facet_angle = r->max_hausdorff = r->max_volume_error = NAN;
+  r->max_mesh_to_image = r->max_p99 = NAN;
   r->facet_exceptions = 0;
   r->volume_min_voxels = 10000;
   r->require_labels = -1;
@@ -83,6 +86,10 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
         r->facet_exceptions = v;
       else if (strcmp(a, "--max-hausdorff") == 0)
         r->max_hausdorff = v;
+      else if (strcmp(a, "--max-mesh-to-image") == 0)
+        r->max_mesh_to_image = v;
+      else if (strcmp(a, "--max-p99") == 0)
+        r->max_p99 = v;
       else if (strcmp(a, "--max-volume-error") == 0)
         r->max_volume_error = v;
       else if (strcmp(a, "--volume-min-voxels") == 0)
@@ -97,8 +104,10 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
     o->mesh = a;
   }
   if (!o->mesh) return fail_usage("%s", "no mesh file given");
-  if (!o->image && (!isnan(r->max_hausdorff) || !isnan(r->max_volume_error) || r->require_labels >= 0))
-    return fail_usage("%s", "--max-hausdorff, --max-volume-error and --require-labels need --image");
+  if (!o->image && (!isnan(r->max_hausdorff) || !isnan(r->max_volume_error) || r->require_labels >= 0 ||
+                    !isnan(r->max_mesh_to_image) || !isnan(r->max_p99)))
+    return fail_usage("%s", "the fidelity thresholds (--max-hausdorff, --max-mesh-to-image, --max-p99, "
+                            "--max-volume-error, --require-labels) need --image");
   return -1;
 }
 
@@ -126,6 +135,12 @@ static void thresholds(ck_result_t *r)
   if (!isnan(r->max_hausdorff) && !(f->two_sided.max <= r->max_hausdorff))
     violation(r, "max-hausdorff: two-sided distance %.4g mm exceeds %g mm", f->two_sided.max,
               r->max_hausdorff, 0);
+  if (!isnan(r->max_mesh_to_image) && !(f->mesh_to_image.max <= r->max_mesh_to_image))
+    violation(r, "max-mesh-to-image: a mesh interface point lies %.4g mm from the image's interfaces (bound %g mm)",
+              f->mesh_to_image.max, r->max_mesh_to_image, 0);
+  if (!isnan(r->max_p99) && !(f->two_sided.p99 <= r->max_p99))
+    violation(r, "max-p99: the 99th percentile of the two-sided distance is %.4g mm (bound %g mm)", f->two_sided.p99,
+              r->max_p99, 0);
   for (int i = 0; i < f->nlabels; i++) {
     const ck_label_t *L = &f->labels[i];
     if (!isnan(r->max_volume_error) && L->voxels >= r->volume_min_voxels &&

@@ -215,6 +215,8 @@ void ck_report_json(FILE *f, const ck_result_t *r)
   JD(f, "min_facet_angle", r->min_facet_angle, 0);
   JD(f, "facet_angle_exceptions", r->facet_exceptions, 0);
   JD(f, "max_hausdorff", r->max_hausdorff, 0);
+  JD(f, "max_mesh_to_image", r->max_mesh_to_image, 0);
+  JD(f, "max_p99", r->max_p99, 0);
   JD(f, "max_volume_error", r->max_volume_error, 0);
   JI(f, "volume_min_voxels", r->volume_min_voxels, 0);
   JI(f, "require_labels", r->require_labels, 1);

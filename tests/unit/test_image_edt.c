@@ -1,0 +1,191 @@
+/* Unit tests of the image oracles (layer 2): the feature transform is exact (every voxel's
+ * feature is a nearest boundary voxel, by brute force); the closest interface point lies on
+ * an interface and is within half a voxel diagonal of the true distance; the early-out
+ * bound never hides a point within reach; bisection brackets a label change. */
+#include <math.h>
+#include <stdlib.h>
+
+#include "i2m/edt.h"
+#include "test_util.h"
+
+static uint64_t rng = 0x1234567ull;
+static double urand(void)
+{
+  rng ^= rng << 13;
+  rng ^= rng >> 7;
+  rng ^= rng << 17;
+  return (double)(rng >> 11) * (1.0 / 9007199254740992.0);
+}
+
+/* Random blobs of labels 0..3 in an n0 x n1 x n2 image with anisotropic spacing. */
+static i2m_image_t *random_image(int64_t n0, int64_t n1, int64_t n2, double fill)
+{
+  int64_t n[3] = {n0, n1, n2};
+  double sp[3] = {0.7, 1.0, 1.9};
+  int64_t *v = calloc((size_t)(n0 * n1 * n2), sizeof *v);
+  for (int b = 0; b < 6; b++) { /* a few random balls */
+    double c[3] = {urand() * n0, urand() * n1, urand() * n2}, r = 1 + fill * urand() * n0;
+    int64_t lab = 1 + b % 3;
+    for (int64_t k = 0; k < n2; k++)
+      for (int64_t j = 0; j < n1; j++)
+        for (int64_t i = 0; i < n0; i++) {
+          double d = sqrt(pow((i - c[0]) * sp[0], 2) + pow((j - c[1]) * sp[1], 2) + pow((k - c[2]) * sp[2], 2));
+          if (d < r) v[(k * n1 + j) * n0 + i] = lab;
+        }
+  }
+  i2m_image_t *img = NULL;
+  CU_ASSERT_FATAL(i2m_image_create_from_values(n, sp, NULL, NULL, v, &img) == I2M_OK);
+  free(v);
+  return img;
+}
+
+static bool is_boundary(const i2m_image_t *img, int64_t i, int64_t j, int64_t k)
+{
+  int l = i2m_image_label_voxel(img, i, j, k);
+  const int64_t d[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+  for (int q = 0; q < 6; q++)
+    if (i2m_image_label_voxel(img, i + d[q][0], j + d[q][1], k + d[q][2]) != l) return true;
+  return false;
+}
+
+/* Brute force: exact distance from p to the nearest interface face (squares between voxels
+ * of different labels, outside counting as 0). */
+static double brute_face_distance(const i2m_image_t *img, const double p[3])
+{
+  double best = INFINITY;
+  for (int64_t k = -1; k < img->n[2]; k++)
+    for (int64_t j = -1; j < img->n[1]; j++)
+      for (int64_t i = -1; i < img->n[0]; i++)
+        for (int ax = 0; ax < 3; ax++) {
+          int64_t c[3] = {i, j, k}, n[3] = {i, j, k};
+          n[ax]++;
+          if (i2m_image_label_voxel(img, c[0], c[1], c[2]) == i2m_image_label_voxel(img, n[0], n[1], n[2])) continue;
+          double d2 = 0;
+          for (int a = 0; a < 3; a++) {
+            double s = img->spacing[a], q;
+            if (a == ax) q = (c[a] + 0.5) * s;
+            else q = fmin(fmax(p[a], (c[a] - 0.5) * s), (c[a] + 0.5) * s);
+            d2 += (p[a] - q) * (p[a] - q);
+          }
+          best = fmin(best, d2);
+        }
+  return sqrt(best);
+}
+
+static void test_feature_transform_exact(void)
+{
+  for (int trial = 0; trial < 4; trial++) {
+    i2m_image_t *img = random_image(13, 11, 9, 0.4);
+    i2m_edt_t *e = NULL;
+    CU_ASSERT_FATAL(i2m_edt_create(img, &e) == I2M_OK);
+    CU_ASSERT(e->nboundary > 0);
+    for (int64_t k = 0; k < e->m[2]; k++)
+      for (int64_t j = 0; j < e->m[1]; j++)
+        for (int64_t i = 0; i < e->m[0]; i++) {
+          int32_t f = e->ft[(k * e->m[1] + j) * e->m[0] + i];
+          CU_ASSERT_FATAL(f >= 0);
+          int64_t fi = f % e->m[0], fj = (f / e->m[0]) % e->m[1], fk = f / (e->m[0] * e->m[1]);
+          int64_t v[3] = {e->lo[0] + i, e->lo[1] + j, e->lo[2] + k}, b[3] = {e->lo[0] + fi, e->lo[1] + fj, e->lo[2] + fk};
+          CU_ASSERT(is_boundary(img, b[0], b[1], b[2]));
+          double dft = 0, best = INFINITY;
+          for (int a = 0; a < 3; a++) dft += pow((double)(v[a] - b[a]) * img->spacing[a], 2);
+          for (int64_t kk = 0; kk < img->n[2]; kk++) /* nearest boundary voxel centre, brute force */
+            for (int64_t jj = 0; jj < img->n[1]; jj++)
+              for (int64_t ii = 0; ii < img->n[0]; ii++)
+                if (is_boundary(img, ii, jj, kk)) {
+                  double d = pow((double)(v[0] - ii) * img->spacing[0], 2) + pow((double)(v[1] - jj) * img->spacing[1], 2) +
+                             pow((double)(v[2] - kk) * img->spacing[2], 2);
+                  best = fmin(best, d);
+                }
+          CU_ASSERT_DOUBLE_EQUAL(dft, best, 1e-9);
+        }
+    i2m_edt_destroy(&e);
+    i2m_image_destroy(&img);
+  }
+}
+
+static void test_closest_point(void)
+{
+  i2m_image_t *img = random_image(14, 12, 8, 0.4);
+  i2m_edt_t *e = NULL;
+  CU_ASSERT_FATAL(i2m_edt_create(img, &e) == I2M_OK);
+  double hdiag = 0.5 * sqrt(pow(img->spacing[0], 2) + pow(img->spacing[1], 2) + pow(img->spacing[2], 2));
+  for (int q = 0; q < 400; q++) { /* points inside and well outside the image */
+    double p[3], z[3];
+    for (int a = 0; a < 3; a++) p[a] = (urand() * 1.6 - 0.3) * (double)img->n[a] * img->spacing[a];
+    int pair[2];
+    double d = sqrt(i2m_edt_closest(e, p, INFINITY, z, pair));
+    double truth = brute_face_distance(img, p);
+    CU_ASSERT(d >= truth - 1e-9);          /* z is an interface point ... */
+    CU_ASSERT(d <= truth + 2 * hdiag);    /* ... close to the nearest one */
+    CU_ASSERT(pair[0] < pair[1]);
+    /* z is on an interface of the pair it reports: both labels occur right around z (z may
+     * lie on a face's edge or corner, so look at all eight nudged copies) */
+    bool seen[2] = {false, false};
+    for (int c = 0; c < 8; c++) {
+      double zz[3];
+      for (int a = 0; a < 3; a++) zz[a] = z[a] + ((c >> a) & 1 ? 1e-6 : -1e-6);
+      int l = i2m_image_label_at(img, zz);
+      seen[0] = seen[0] || l == pair[0];
+      seen[1] = seen[1] || l == pair[1];
+    }
+    CU_ASSERT(seen[0] && seen[1]);
+    /* the early-out bound never answers "farther" for a point within reach */
+    double r2 = pow(truth + 0.01, 2);
+    CU_ASSERT(isfinite(i2m_edt_closest(e, p, r2, z, NULL)) || d * d > r2);
+  }
+  i2m_edt_destroy(&e);
+  i2m_image_destroy(&img);
+}
+
+static void test_no_interface(void)
+{
+  int64_t n[3] = {5, 4, 3}, v[60] = {0};
+  double sp[3] = {1, 1, 1}, p[3] = {1, 1, 1}, z[3];
+  i2m_image_t *img = NULL;
+  CU_ASSERT_FATAL(i2m_image_create_from_values(n, sp, NULL, NULL, v, &img) == I2M_OK);
+  i2m_edt_t *e = NULL;
+  CU_ASSERT_FATAL(i2m_edt_create(img, &e) == I2M_OK);
+  CU_ASSERT_EQUAL(e->nboundary, 0);
+  CU_ASSERT(isinf(i2m_edt_closest(e, p, INFINITY, z, NULL)));
+  i2m_edt_destroy(&e);
+  i2m_image_destroy(&img);
+}
+
+static void test_bisection(void)
+{
+  i2m_image_t *img = random_image(12, 12, 10, 0.5);
+  int found = 0;
+  for (int q = 0; q < 300; q++) {
+    double a[3], b[3], x[3];
+    for (int k = 0; k < 3; k++) {
+      a[k] = urand() * (double)img->n[k] * img->spacing[k];
+      b[k] = urand() * (double)img->n[k] * img->spacing[k];
+    }
+    if (i2m_image_label_at(img, a) == i2m_image_label_at(img, b)) continue;
+    int la, lb;
+    double tol = 1e-4;
+    i2m_edt_bisect(img, a, b, tol, x, &la, &lb);
+    found++;
+    CU_ASSERT_EQUAL(la, i2m_image_label_at(img, a));
+    CU_ASSERT(la != lb);
+    /* x is within tol of a point where the label leaves la: step back and forth along ab */
+    double L = sqrt(pow(b[0] - a[0], 2) + pow(b[1] - a[1], 2) + pow(b[2] - a[2], 2));
+    double p0[3], p1[3];
+    for (int k = 0; k < 3; k++) {
+      p0[k] = x[k] - (b[k] - a[k]) / L * tol;
+      p1[k] = x[k] + (b[k] - a[k]) / L * tol;
+    }
+    CU_ASSERT(i2m_image_label_at(img, p0) != i2m_image_label_at(img, p1) || i2m_image_label_at(img, p0) == la);
+  }
+  CU_ASSERT(found > 50);
+  i2m_image_destroy(&img);
+}
+
+static const test_case_t cases[] = {
+    {"feature transform exact (brute force)", test_feature_transform_exact},
+    {"closest interface point", test_closest_point},
+    {"image without interface", test_no_interface},
+    {"segment bisection", test_bisection},
+};
+TEST_MAIN("image oracles", cases)

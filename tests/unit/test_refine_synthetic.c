@@ -1,0 +1,208 @@
+/* Unit tests of Delaunay refinement (layer 4) on small synthetic label images: the final
+ * triangulation is valid and Delaunay; every output tet meets the radius-edge bound; the
+ * interface triangles meet the angle bound and carry the right label pairs; every label is
+ * present with about its voxel volume; a left-handed image frame still gives positive tets;
+ * runs are deterministic; bad parameters are refused with a message. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "i2m/geometry.h"
+#include "i2m/quality.h"
+#include "i2m/refine.h"
+#include "test_util.h"
+
+#define N 22
+
+/* label(i,j,k) for the shapes */
+typedef int64_t (*shape_fn)(double x, double y, double z);
+static int64_t nested(double x, double y, double z)
+{
+  double r = sqrt(x * x + y * y + z * z);
+  return r < 4.5 ? 20 : r < 8.5 ? 7 : 0;
+}
+static int64_t two_balls(double x, double y, double z)
+{
+  if ((x - 3.5) * (x - 3.5) + y * y + z * z < 30) return 5;
+  if ((x + 3.5) * (x + 3.5) + y * y + z * z < 30) return 9;
+  return 0;
+}
+
+static i2m_image_t *make_image(shape_fn f, const double sp[3], const double *dir)
+{
+  int64_t n[3] = {N, N, N};
+  int64_t *v = malloc(sizeof(int64_t) * N * N * N);
+  for (int k = 0; k < N; k++)
+    for (int j = 0; j < N; j++)
+      for (int i = 0; i < N; i++)
+        v[(k * N + j) * N + i] = f((i - N / 2 + 0.5) * sp[0], (j - N / 2 + 0.5) * sp[1], (k - N / 2 + 0.5) * sp[2]);
+  double origin[3] = {10, -20, 30};
+  i2m_image_t *img = NULL;
+  CU_ASSERT_FATAL(i2m_image_create_from_values(n, sp, origin, dir, v, &img) == I2M_OK);
+  free(v);
+  return img;
+}
+
+typedef struct {
+  i2m_image_t *img;
+  i2m_edt_t *edt;
+  i2m_refine_t *ref;
+  i2m_tetmesh_t *mesh;
+} run_t;
+
+static void run_mesher(run_t *r, const i2m_refine_params_t *p)
+{
+  CU_ASSERT_FATAL(i2m_edt_create(r->img, &r->edt) == I2M_OK);
+  CU_ASSERT_FATAL(i2m_refine_create(r->img, r->edt, p, &r->ref) == I2M_OK);
+  CU_ASSERT_FATAL(i2m_refine_run(r->ref) == I2M_OK);
+  i2m_err_t err = i2m_dt_check(i2m_refine_dt(r->ref), true);
+  if (err) fprintf(stderr, "%s\n", i2m_error_message());
+  CU_ASSERT_EQUAL_FATAL(err, I2M_OK);
+  CU_ASSERT_FATAL(i2m_refine_extract(r->ref, &r->mesh) == I2M_OK);
+}
+
+static void run_free(run_t *r)
+{
+  i2m_tetmesh_destroy(&r->mesh);
+  i2m_refine_destroy(&r->ref);
+  i2m_edt_destroy(&r->edt);
+  i2m_image_destroy(&r->img);
+}
+
+/* Checks the guarantees on the extracted mesh (world coordinates). */
+static void check_mesh(const run_t *r, double ratio)
+{
+  const i2m_tetmesh_t *m = r->mesh;
+  CU_ASSERT(m->nt > 100);
+  i2m_quality_t q;
+  CU_ASSERT_FATAL(i2m_quality_compute(m, r->img, ratio, 30, &q) == I2M_OK);
+  CU_ASSERT(q.max_radius_edge <= ratio * (1 + 1e-9));
+  CU_ASSERT_EQUAL(q.n_ratio_above, 0);
+  CU_ASSERT(q.n_facet_below <= m->ntri / 1000);
+  for (int l = 0; l < q.nlabels; l++) { /* every label present, volume within 15% */
+    CU_ASSERT(q.labels[l].ntets > 0);
+    CU_ASSERT(fabs(q.labels[l].volume - q.labels[l].voxel_volume) <= 0.15 * q.labels[l].voxel_volume);
+  }
+  i2m_quality_free(&q);
+  for (int64_t t = 0; t < m->nt; t++) { /* positive volumes in the world frame */
+    const int32_t *v = m->tet + 4 * t;
+    CU_ASSERT(i2m_tet_signed_volume6(m->xyz + 3 * v[0], m->xyz + 3 * v[1], m->xyz + 3 * v[2], m->xyz + 3 * v[3]) > 0);
+  }
+  for (int64_t f = 0; f < m->ntri; f++) { /* label pairs ordered and differing */
+    CU_ASSERT(m->tri_label[2 * f] < m->tri_label[2 * f + 1]);
+  }
+}
+
+static void test_nested_shells(void)
+{
+  double sp[3] = {1, 1, 1};
+  run_t r = {make_image(nested, sp, NULL), NULL, NULL, NULL};
+  i2m_refine_params_t p;
+  i2m_refine_params_default(&p);
+  run_mesher(&r, &p);
+  check_mesh(&r, 2.0);
+  for (int64_t f = 0; f < r.mesh->ntri; f++) {
+    int64_t a = r.mesh->tri_label[2 * f], b = r.mesh->tri_label[2 * f + 1];
+    CU_ASSERT((a == 0 && b == 7) || (a == 7 && b == 20));
+  }
+  run_free(&r);
+}
+
+static void test_anisotropic_left_handed(void)
+{
+  double sp[3] = {0.6, 0.8, 1.4};
+  double dir[9] = {-1, 0, 0, 0, 1, 0, 0, 0, 1}; /* mirrored: det -1 */
+  run_t r = {make_image(nested, sp, dir), NULL, NULL, NULL};
+  i2m_refine_params_t p;
+  i2m_refine_params_default(&p);
+  run_mesher(&r, &p);
+  check_mesh(&r, 2.0);
+  run_free(&r);
+}
+
+static void test_touching_balls_and_ratio(void)
+{
+  double sp[3] = {1, 1, 1};
+  run_t r = {make_image(two_balls, sp, NULL), NULL, NULL, NULL};
+  i2m_refine_params_t p;
+  i2m_refine_params_default(&p);
+  p.ratio = 2.5;
+  p.size = 2.0;
+  run_mesher(&r, &p);
+  check_mesh(&r, 2.5);
+  for (int64_t t = 0; t < r.mesh->nt; t++) { /* the size bound holds in the world frame */
+    const int32_t *v = r.mesh->tet + 4 * t;
+    double cc[3], r2;
+    i2m_tet_circumcenter(r.mesh->xyz + 3 * v[0], r.mesh->xyz + 3 * v[1], r.mesh->xyz + 3 * v[2], r.mesh->xyz + 3 * v[3], cc, &r2);
+    CU_ASSERT(sqrt(r2) <= 2.0 * (1 + 1e-9));
+  }
+  run_free(&r);
+}
+
+static uint64_t mesh_hash(const i2m_tetmesh_t *m)
+{
+  uint64_t h = 1469598103934665603ull;
+  for (int64_t i = 0; i < 4 * m->nt; i++) h = (h ^ (uint64_t)m->tet[i]) * 1099511628211ull;
+  for (int64_t i = 0; i < 3 * m->nv; i++) {
+    uint64_t b;
+    memcpy(&b, &m->xyz[i], sizeof b);
+    h = (h ^ b) * 1099511628211ull;
+  }
+  return h;
+}
+
+static void test_deterministic(void)
+{
+  double sp[3] = {1, 1, 1};
+  uint64_t h[2];
+  for (int k = 0; k < 2; k++) {
+    run_t r = {make_image(two_balls, sp, NULL), NULL, NULL, NULL};
+    i2m_refine_params_t p;
+    i2m_refine_params_default(&p);
+    run_mesher(&r, &p);
+    h[k] = mesh_hash(r.mesh);
+    run_free(&r);
+  }
+  CU_ASSERT_EQUAL(h[0], h[1]);
+}
+
+static void test_bad_parameters(void)
+{
+  double sp[3] = {1, 1, 1};
+  i2m_image_t *img = make_image(nested, sp, NULL);
+  i2m_refine_params_t p;
+  i2m_label_size_t ls = {99, 1.0};
+  i2m_region_t rg = {{500, 500, 500}, {510, 510, 510}, 1.0, 2.0};
+  i2m_refine_params_default(&p);
+  CU_ASSERT_EQUAL(i2m_refine_params_check(&p, img), I2M_OK);
+  p.ratio = 1.9;
+  CU_ASSERT_EQUAL(i2m_refine_params_check(&p, img), I2M_ERR_ARG);
+  i2m_refine_params_default(&p);
+  p.delta = -1;
+  CU_ASSERT_EQUAL(i2m_refine_params_check(&p, img), I2M_ERR_ARG);
+  i2m_refine_params_default(&p);
+  p.nlabel_sizes = 1;
+  p.label_sizes = &ls;
+  CU_ASSERT_EQUAL(i2m_refine_params_check(&p, img), I2M_ERR_ARG);
+  CU_ASSERT(strstr(i2m_error_message(), "99") != NULL);
+  i2m_refine_params_default(&p);
+  p.nregions = 1;
+  p.regions = &rg;
+  CU_ASSERT_EQUAL(i2m_refine_params_check(&p, img), I2M_ERR_ARG);
+  CU_ASSERT(strstr(i2m_error_message(), "outside") != NULL);
+  i2m_image_destroy(&img);
+  int64_t n[3] = {4, 4, 4}, zeros[64] = {0};
+  CU_ASSERT_FATAL(i2m_image_create_from_values(n, sp, NULL, NULL, zeros, &img) == I2M_OK);
+  i2m_refine_params_default(&p);
+  CU_ASSERT_EQUAL(i2m_refine_params_check(&p, img), I2M_ERR_INPUT);
+  i2m_image_destroy(&img);
+}
+
+static const test_case_t cases[] = {
+    {"nested shells", test_nested_shells},
+    {"anisotropic, left-handed frame", test_anisotropic_left_handed},
+    {"touching balls, ratio 2.5, size bound", test_touching_balls_and_ratio},
+    {"deterministic", test_deterministic},
+    {"bad parameters refused", test_bad_parameters},
+};
+TEST_MAIN("refinement", cases)

@@ -6,7 +6,8 @@ cd "$(dirname "$0")/.."
 mkdir -p bench/results
 echo "== Delaunay kernel, one thread (10^6 and 10^7 random points in the unit cube)"
 "$bdir/bench_delaunay" 1000000 10000000 --json bench/results/delaunay.json
-[ -x "$bdir/bench_predicates" ] && "$bdir/bench_predicates" || true
+echo "== predicates"
+[ -x "$bdir/bench_predicates" ] && "$bdir/bench_predicates" | tail -n 12 || true
 for s in bench/bench_*.sh; do
   [ -f "$s" ] || continue
   echo "== $(basename "$s")"

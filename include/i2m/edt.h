@@ -39,9 +39,12 @@ void i2m_edt_destroy(i2m_edt_t **e);
  *  compute it).  Thread safe. */
 double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2]);
 
-/** Along the segment a -> b (grid frame) whose end labels differ, the point where the label
- *  first changes, to within @p tol: returns it in x and the labels on its two sides.
- *  Thread safe. */
+/** The same query with p and z in world coordinates (the mesher's frame). */
+double i2m_edt_closest_world(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2]);
+
+/** Along the segment a -> b (world coordinates) whose end labels differ, a point where the
+ *  label changes from a's, to within @p tol: returns it in x and the labels on its two
+ *  sides.  Thread safe. */
 void i2m_edt_bisect(const i2m_image_t *img, const double a[3], const double b[3], double tol, double x[3],
                     int *label_a, int *label_b);
 

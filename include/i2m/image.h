@@ -4,9 +4,10 @@
  * Frames.  World coordinates follow the LPS convention of ITK and DICOM (x to the patient's
  * left, y posterior, z superior); NIfTI's RAS is converted on reading.  A voxel index
  * (i,j,k) has world position  origin + dir * diag(spacing) * (i,j,k)  (voxel centres).
- * The mesher works in the "grid frame": g = diag(spacing) * (i,j,k), an axis-aligned frame
- * in mm with voxel (0,0,0)'s centre at the origin; i2m_image_grid_to_world() maps a grid
- * point to the world (a rigid motion when dir is orthonormal, which the readers ensure). */
+ * The "grid frame" is g = diag(spacing) * (i,j,k), an axis-aligned frame in mm with voxel
+ * (0,0,0)'s centre at the origin; i2m_image_grid_to_world() maps it to the world (a rigid
+ * motion when dir is orthonormal, which the readers ensure).  The mesher works in world
+ * coordinates, so the coordinates it writes are exactly those its predicates decided on. */
 #ifndef I2M_IMAGE_H
 #define I2M_IMAGE_H
 
@@ -98,8 +99,24 @@ static inline int i2m_image_label_voxel(const i2m_image_t *img, int64_t i, int64
 
 /** Grid frame -> world (LPS). */
 void i2m_image_grid_to_world(const i2m_image_t *img, const double g[3], double w[3]);
-/** World (LPS) -> grid frame. */
-void i2m_image_world_to_grid(const i2m_image_t *img, const double w[3], double g[3]);
+
+/** World (LPS) -> grid frame (dir is orthonormal: its inverse is its transpose). */
+static inline void i2m_image_world_to_grid(const i2m_image_t *img, const double w[3], double g[3])
+{
+  double d0 = w[0] - img->origin[0], d1 = w[1] - img->origin[1], d2 = w[2] - img->origin[2];
+  for (int c = 0; c < 3; c++) g[c] = img->dir[0][c] * d0 + img->dir[1][c] * d1 + img->dir[2][c] * d2;
+}
+
+/** Label index of a world point (the voxel that contains it, 0 outside the image). */
+static inline int i2m_image_label_at_world(const i2m_image_t *img, const double w[3])
+{
+  double g[3];
+  i2m_image_world_to_grid(img, w, g);
+  return i2m_image_label_at(img, g);
+}
+
+/** World bounding box of the image block (outer voxel faces). */
+void i2m_image_world_bounds(const i2m_image_t *img, double lo[3], double hi[3]);
 /** Determinant sign of dir (+1 or -1): -1 means the grid->world map flips orientation, so
  *  writers swap two vertices of every tetrahedron to keep positive volumes. */
 int i2m_image_handedness(const i2m_image_t *img);

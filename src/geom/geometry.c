@@ -104,7 +104,7 @@ int i2m_tet_circumcenter(const double a[3], const double b[3], const double c[3]
   double den = 2.0 * dot3(u, vw);
   double lu = dot3(u, u), lv = dot3(v, v), lw = dot3(w, w);
   double scale = lu + lv + lw;
-  if (!(fabs(den) > 1e-8 * scale * sqrt(scale))) { /* nearly flat: double precision is not enough */
+  if (!(fabs(den) > 1e-11 * scale * sqrt(scale))) { /* nearly flat: double precision is not enough */
     if (circumcenter_dd(a, b, c, d, cc, r2) == 0) return 0;
     cc[0] = cc[1] = cc[2] = 1e300;
     *r2 = INFINITY;

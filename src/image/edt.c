@@ -283,15 +283,29 @@ double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, dou
   return closest_on_voxel_faces(img, b, p, z, pair);
 }
 
+double i2m_edt_closest_world(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2])
+{
+  double g[3], zg[3];
+  i2m_image_world_to_grid(e->img, p, g);
+  double d2 = i2m_edt_closest(e, g, max_d2, zg, pair);
+  if (isfinite(d2)) {
+    i2m_image_grid_to_world(e->img, zg, z);
+    d2 = i2m_dist2(p, z);
+  } else {
+    memcpy(z, p, 3 * sizeof *z);
+  }
+  return d2;
+}
+
 void i2m_edt_bisect(const i2m_image_t *img, const double a[3], const double b[3], double tol, double x[3],
                     int *label_a, int *label_b)
 {
   double p[3] = {a[0], a[1], a[2]}, q[3] = {b[0], b[1], b[2]};
-  int la = i2m_image_label_at(img, p), lb = i2m_image_label_at(img, q);
+  int la = i2m_image_label_at_world(img, p), lb = i2m_image_label_at_world(img, q);
   double tol2 = tol * tol;
   for (int it = 0; it < 200 && i2m_dist2(p, q) > tol2; it++) {
     double m[3] = {0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1]), 0.5 * (p[2] + q[2])};
-    int lm = i2m_image_label_at(img, m);
+    int lm = i2m_image_label_at_world(img, m);
     if (lm != la) { /* keep the half next to a: the first change from a */
       memcpy(q, m, sizeof m);
       lb = lm;

@@ -161,11 +161,21 @@ void i2m_image_grid_to_world(const i2m_image_t *img, const double g[3], double w
     w[r] = img->origin[r] + img->dir[r][0] * g[0] + img->dir[r][1] * g[1] + img->dir[r][2] * g[2];
 }
 
-void i2m_image_world_to_grid(const i2m_image_t *img, const double w[3], double g[3])
+void i2m_image_world_bounds(const i2m_image_t *img, double lo[3], double hi[3])
 {
-  double d[3] = {w[0] - img->origin[0], w[1] - img->origin[1], w[2] - img->origin[2]};
-  for (int c = 0; c < 3; c++) /* dir is orthonormal: its inverse is its transpose */
-    g[c] = img->dir[0][c] * d[0] + img->dir[1][c] * d[1] + img->dir[2][c] * d[2];
+  for (int a = 0; a < 3; a++) {
+    lo[a] = INFINITY;
+    hi[a] = -INFINITY;
+  }
+  for (int c = 0; c < 8; c++) { /* corners of the voxel block (outer faces) */
+    double g[3], w[3];
+    for (int a = 0; a < 3; a++) g[a] = (((c >> a) & 1) ? (double)img->n[a] - 0.5 : -0.5) * img->spacing[a];
+    i2m_image_grid_to_world(img, g, w);
+    for (int a = 0; a < 3; a++) {
+      lo[a] = fmin(lo[a], w[a]);
+      hi[a] = fmax(hi[a], w[a]);
+    }
+  }
 }
 
 int i2m_image_handedness(const i2m_image_t *img)

@@ -18,17 +18,16 @@ void tet_info_compute(const i2m_refine_t *r, uint32_t t)
     ti->label = 0;
     return;
   }
-  ti->label = (uint16_t)i2m_image_label_at(r->img, ti->cc);
+  ti->label = (uint16_t)i2m_image_label_at_world(r->img, ti->cc);
 }
 
-/* Size and ratio bounds at a point (grid frame) with label index lab. */
+/* Size and ratio bounds at a point (world) with label index lab. */
 static void local_bounds(const i2m_refine_t *r, const double c[3], int lab, double *size, double *ratio)
 {
   double s = r->p.size, q = r->p.ratio;
   if (r->label_size && r->label_size[lab] < s) s = r->label_size[lab];
   if (r->p.nregions) {
-    double w[3];
-    i2m_image_grid_to_world(r->img, c, w);
+    const double *w = c;
     for (int k = 0; k < r->p.nregions; k++) {
       const i2m_region_t *g = &r->p.regions[k];
       if (w[0] < g->lo[0] || w[0] > g->hi[0] || w[1] < g->lo[1] || w[1] > g->hi[1] || w[2] < g->lo[2] ||
@@ -101,7 +100,7 @@ static bool ball_meets_interface(const i2m_refine_t *r, const tet_info_t *ti, do
   *d2 = INFINITY;
   if (!isfinite(ti->r2)) return false;
   int pair[2];
-  *d2 = i2m_edt_closest(r->edt, ti->cc, fmax(ti->r2, r->four_delta2), z, pair);
+  *d2 = i2m_edt_closest_world(r->edt, ti->cc, fmax(ti->r2, r->four_delta2), z, pair);
   *patch = patch_key(pair[0], pair[1]);
   return *d2 <= ti->r2;
 }

@@ -1,7 +1,7 @@
 /* Refine layer: extraction of the labelled mesh (REFERENCE §1.8): the tets whose
  * circumcentre is inside, labelled there; the interface triangles between different labels
- * (normal from the smaller label value to the larger); compacted vertices in world
- * coordinates, orientation kept positive when the image frame is left-handed. */
+ * (normal from the smaller label value to the larger); compacted vertices.  The mesher works
+ * in world coordinates, so the tets keep the exact positive orientation the kernel gave. */
 #include "refine_impl.h"
 
 #include <string.h>
@@ -49,8 +49,7 @@ i2m_err_t i2m_refine_extract(const i2m_refine_t *r, i2m_tetmesh_t **out)
   extract_count(r, vmap, &nv, &nt, &ntri);
   I2M_CALL_GOTO(err, done, i2m_tetmesh_create(nv, nt, ntri, &m));
   for (uint32_t v = 0; v < nvs; v++)
-    if (vmap[v] >= 0) i2m_image_grid_to_world(img, i2m_dt_xyz(dt, v), m->xyz + 3 * (size_t)vmap[v]);
-  bool flip = i2m_image_handedness(img) < 0; /* a left-handed frame mirrors every tet */
+    if (vmap[v] >= 0) memcpy(m->xyz + 3 * (size_t)vmap[v], i2m_dt_xyz(dt, v), 3 * sizeof(double));
   int64_t kt = 0, kf = 0;
   for (uint32_t t = 0; t < nslots; t++) {
     if (!i2m_dt_alive(dt, t) || tinfo(dt, t)->label == 0) continue;
@@ -58,11 +57,6 @@ i2m_err_t i2m_refine_extract(const i2m_refine_t *r, i2m_tetmesh_t **out)
     int64_t lt = img->label_value[tinfo(dt, t)->label];
     int32_t *q = m->tet + 4 * kt;
     for (int i = 0; i < 4; i++) q[i] = vmap[v[i]];
-    if (flip) {
-      int32_t x = q[0];
-      q[0] = q[1];
-      q[1] = x;
-    }
     m->tet_label[kt++] = lt;
     for (int i = 0; i < 4; i++) {
       int64_t lu = neighbour_label(r, t, i);
@@ -71,7 +65,7 @@ i2m_err_t i2m_refine_extract(const i2m_refine_t *r, i2m_tetmesh_t **out)
       bool keep = lt < lu;
       int32_t *f = m->tri + 3 * kf;
       for (int k = 0; k < 3; k++) f[k] = vmap[v[FACE_OUT[i][k]]];
-      if (keep == flip) {
+      if (!keep) {
         int32_t x = f[0];
         f[0] = f[1];
         f[1] = x;

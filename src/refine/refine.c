@@ -20,23 +20,6 @@ double i2m_refine_default_delta(const i2m_image_t *img)
   return fmax(0.8 * lo, 0.5 * hi);
 }
 
-static void world_bounds(const i2m_image_t *img, double lo[3], double hi[3])
-{
-  for (int a = 0; a < 3; a++) {
-    lo[a] = INFINITY;
-    hi[a] = -INFINITY;
-  }
-  for (int c = 0; c < 8; c++) { /* corners of the voxel block (outer faces) */
-    double g[3], w[3];
-    for (int a = 0; a < 3; a++) g[a] = (((c >> a) & 1) ? (double)img->n[a] - 0.5 : -0.5) * img->spacing[a];
-    i2m_image_grid_to_world(img, g, w);
-    for (int a = 0; a < 3; a++) {
-      lo[a] = fmin(lo[a], w[a]);
-      hi[a] = fmax(hi[a], w[a]);
-    }
-  }
-}
-
 static int label_index(const i2m_image_t *img, int64_t value)
 {
   for (int l = 0; l < img->nlabels; l++)
@@ -66,7 +49,7 @@ i2m_err_t i2m_refine_params_check(const i2m_refine_params_t *p, const i2m_image_
               (long long)ls->value, ls->size);
   }
   double lo[3], hi[3];
-  world_bounds(img, lo, hi);
+  i2m_image_world_bounds(img, lo, hi);
   for (int k = 0; k < p->nregions; k++) {
     const i2m_region_t *g = &p->regions[k];
     for (int a = 0; a < 3; a++)
@@ -116,23 +99,17 @@ i2m_err_t i2m_refine_create(const i2m_image_t *img, const i2m_edt_t *edt, const 
   r->p = *params;
   atomic_init(&r->next_gid, 8);
   I2M_CALL_GOTO(err, fail, setup_bounds(r));
-  /* the virtual box: the image block grown by its largest extent on every side */
+  /* the virtual box: the image block (world) grown by its largest extent on every side */
   double lo[3], hi[3], ext = 0;
-  for (int a = 0; a < 3; a++) {
-    lo[a] = -0.5 * img->spacing[a];
-    hi[a] = ((double)img->n[a] - 0.5) * img->spacing[a];
-    ext = fmax(ext, hi[a] - lo[a]);
-  }
+  i2m_image_world_bounds(img, lo, hi);
+  for (int a = 0; a < 3; a++) ext = fmax(ext, hi[a] - lo[a]);
   for (int a = 0; a < 3; a++) {
     lo[a] -= ext;
     hi[a] += ext;
   }
   I2M_CALL_GOTO(err, fail, i2m_dt_create(lo, hi, 1 << 16, sizeof(tet_info_t), &r->dt));
   double ilo[3], ihi[3]; /* the image block, where surface points and their neighbours lie */
-  for (int a = 0; a < 3; a++) {
-    ilo[a] = -0.5 * img->spacing[a];
-    ihi[a] = ((double)img->n[a] - 0.5) * img->spacing[a];
-  }
+  i2m_image_world_bounds(img, ilo, ihi);
   I2M_CALL_GOTO(err, fail, vgrid_init(&r->surf, ilo, ihi, 2.0 * r->p.delta));
   I2M_CALL_GOTO(err, fail, vgrid_init(&r->freev, ilo, ihi, 4.0 * r->p.delta));
   r->nworkers = 1;

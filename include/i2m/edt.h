@@ -22,6 +22,8 @@ extern "C" {
 typedef struct i2m_edt {
   const i2m_image_t *img;  /**< borrowed: must outlive the transform */
   int64_t lo[3], m[3];     /**< voxel box K: voxels lo .. lo+m-1 along each axis */
+  double inv_m[3];         /**< 1 / m (index arithmetic without divisions) */
+  double inv_spacing[3];   /**< 1 / spacing */
   int32_t *ft;             /**< owned: [m2][m1][m0] box-linear index of the nearest boundary
                                 voxel, or -1 when the image has no interface */
   int64_t nboundary;       /**< number of boundary voxels */

@@ -86,13 +86,23 @@ static void envelope_1d(const double *f, int64_t n, double w, int64_t *v, double
   }
 }
 
-/* Coordinates of a box-linear index (32-bit arithmetic: the box holds < 2^31 voxels). */
+/* q = f / m for f < 2^31: a double reciprocal gives q within one, a correction step makes
+ * it exact (integer division is the slowest instruction on this path). */
+static inline uint32_t div_fast(uint32_t f, uint32_t m, double inv_m)
+{
+  uint32_t q = (uint32_t)((double)f * inv_m);
+  if (q * m > f) q--;
+  else if ((q + 1) * m <= f) q++;
+  return q;
+}
+
+/* Coordinates of a box-linear index (the box holds < 2^31 voxels). */
 static inline void box_coords(const i2m_edt_t *e, uint32_t f, uint32_t c[3])
 {
   uint32_t m0 = (uint32_t)e->m[0], m1 = (uint32_t)e->m[1];
-  uint32_t q = f / m0;
+  uint32_t q = div_fast(f, m0, e->inv_m[0]);
   c[0] = f - q * m0;
-  c[2] = q / m1;
+  c[2] = div_fast(q, m1, e->inv_m[1]);
   c[1] = q - c[2] * m1;
 }
 
@@ -176,7 +186,11 @@ i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
   e->img = img;
   int64_t hi[3];
   boundary_box(img, e->lo, hi);
-  for (int a = 0; a < 3; a++) e->m[a] = hi[a] - e->lo[a] + 1;
+  for (int a = 0; a < 3; a++) {
+    e->m[a] = hi[a] - e->lo[a] + 1;
+    e->inv_m[a] = e->m[a] > 0 ? 1.0 / (double)e->m[a] : 0.0;
+    e->inv_spacing[a] = 1.0 / img->spacing[a];
+  }
   int64_t nbox = e->m[0] * e->m[1] * e->m[2];
   if (nbox <= 0) { /* no foreground at all */
     *out = e;
@@ -222,25 +236,35 @@ void i2m_edt_destroy(i2m_edt_t **e)
 static double closest_on_voxel_faces(const i2m_image_t *img, const int64_t b[3], const double p[3], double z[3],
                                      int pair[2])
 {
-  int lb = i2m_image_label_voxel(img, b[0], b[1], b[2]);
-  double best = INFINITY;
+  const int64_t n0 = img->n[0], n1 = img->n[1];
+  const int64_t stride[3] = {1, n0, n0 * n1};
+  const int64_t base = (b[2] * n1 + b[1]) * n0 + b[0];
+  const bool interior = b[0] > 0 && b[1] > 0 && b[2] > 0 && b[0] < n0 - 1 && b[1] < n1 - 1 && b[2] < img->n[2] - 1;
+  const int lb = img->vox[base];
+  double best = INFINITY, c[3], h[3], q0[3];
+  for (int a = 0; a < 3; a++) {
+    c[a] = (double)b[a] * img->spacing[a];
+    h[a] = 0.5 * img->spacing[a];
+    double lo = c[a] - h[a], hi = c[a] + h[a];
+    q0[a] = p[a] < lo ? lo : p[a] > hi ? hi : p[a]; /* p clamped into the voxel */
+  }
   for (int ax = 0; ax < 3; ax++)
     for (int dir = -1; dir <= 1; dir += 2) {
-      int64_t n[3] = {b[0], b[1], b[2]};
-      n[ax] += dir;
-      if (i2m_image_label_voxel(img, n[0], n[1], n[2]) == lb) continue;
-      double q[3], d2 = 0;
-      for (int a = 0; a < 3; a++) {
-        double c = (double)b[a] * img->spacing[a], h = 0.5 * img->spacing[a];
-        if (a == ax) q[a] = c + dir * h;
-        else q[a] = fmin(fmax(p[a], c - h), c + h); /* clamp into the square face */
-        d2 += i2m_sq(p[a] - q[a]);
+      int ln;
+      if (interior) ln = img->vox[base + dir * stride[ax]];
+      else {
+        int64_t n[3] = {b[0], b[1], b[2]};
+        n[ax] += dir;
+        ln = i2m_image_label_voxel(img, n[0], n[1], n[2]);
       }
+      if (ln == lb) continue;
+      double q[3] = {q0[0], q0[1], q0[2]};
+      q[ax] = c[ax] + dir * h[ax]; /* the face plane; the other coordinates clamped into it */
+      double d2 = i2m_sq(p[0] - q[0]) + i2m_sq(p[1] - q[1]) + i2m_sq(p[2] - q[2]);
       if (d2 < best) {
         best = d2;
         memcpy(z, q, sizeof q);
         if (pair) {
-          int ln = i2m_image_label_voxel(img, n[0], n[1], n[2]);
           pair[0] = lb < ln ? lb : ln;
           pair[1] = lb < ln ? ln : lb;
         }
@@ -259,11 +283,18 @@ double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, dou
   const i2m_image_t *img = e->img;
   int64_t c[3];
   bool inside = true;
-  for (int a = 0; a < 3; a++) { /* voxel of p's projection on the box K */
-    double u = floor(p[a] / img->spacing[a] + 0.5);
+  for (int a = 0; a < 3; a++) { /* voxel of p's projection on the box K (no floor(): a call) */
+    double u = p[a] * e->inv_spacing[a] + 0.5;
     int64_t lo = e->lo[a], hi = e->lo[a] + e->m[a] - 1;
-    inside = inside && u >= (double)lo && u <= (double)hi;
-    c[a] = u < (double)lo ? lo : u > (double)hi ? hi : (int64_t)u;
+    if (!(u >= (double)lo)) {
+      c[a] = lo;
+      inside = false;
+    } else if (u >= (double)(hi + 1)) {
+      c[a] = hi;
+      inside = false;
+    } else {
+      c[a] = (int64_t)u;
+    }
   }
   int32_t f = e->ft[((c[2] - e->lo[2]) * e->m[1] + (c[1] - e->lo[1])) * e->m[0] + (c[0] - e->lo[0])];
   uint32_t fc[3];

@@ -88,7 +88,7 @@ static int facet_bad(const i2m_refine_t *r, uint32_t t, uint32_t i)
   double lx = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
   double cx = u[1] * w[2] - u[2] * w[1], cy = u[2] * w[0] - u[0] * w[2], cz = u[0] * w[1] - u[1] * w[0];
   double area2 = cx * cx + cy * cy + cz * cz;
-  double lmin = fmin(lu, fmin(lw, lx));
+  double lmin = lu < lw ? (lu < lx ? lu : lx) : (lw < lx ? lw : lx);
   return lmin * area2 < r->sin2_facet * lu * lw * lx ? 5 : 0;
 }
 
@@ -100,7 +100,7 @@ static bool ball_meets_interface(const i2m_refine_t *r, const tet_info_t *ti, do
   *d2 = INFINITY;
   if (!isfinite(ti->r2)) return false;
   int pair[2];
-  *d2 = i2m_edt_closest_world(r->edt, ti->cc, fmax(ti->r2, r->four_delta2), z, pair);
+  *d2 = i2m_edt_closest_world(r->edt, ti->cc, (ti->r2 > r->four_delta2 ? ti->r2 : r->four_delta2), z, pair);
   *patch = patch_key(pair[0], pair[1]);
   return *d2 <= ti->r2;
 }
@@ -112,6 +112,19 @@ static bool in_box(const i2m_dt_t *dt, const double p[3])
   return true;
 }
 
+/* R1's spacing test: is a surface vertex of the same patch within delta of z?  The tet's own
+ * vertices are looked at first (near a sampled surface one of them usually is), then the
+ * grid. */
+static bool surface_vertex_near(const i2m_refine_t *r, uint32_t t, const double z[3], uint32_t patch)
+{
+  const i2m_dt_t *dt = r->dt;
+  const uint32_t *v = dt->tv + 4 * (size_t)t;
+  for (int i = 0; i < 4; i++)
+    if (dt->vkind[v[i]] == I2M_VK_SURFACE && r->surf.tag[v[i]] == patch && i2m_dist2(i2m_dt_xyz(dt, v[i]), z) < r->delta2)
+      return true;
+  return vgrid_has_within(&r->surf, dt, z, r->p.delta, patch);
+}
+
 int classify_level(i2m_refine_worker_t *w, uint32_t t)
 {
   const i2m_refine_t *r = w->r;
@@ -119,7 +132,7 @@ int classify_level(i2m_refine_worker_t *w, uint32_t t)
   double z[3], d2;
   uint32_t patch;
   bool meets = ball_meets_interface(r, ti, z, &patch, &d2);
-  if (meets && !vgrid_has_within(&r->surf, r->dt, z, r->p.delta, patch)) return LEVEL_SURFACE;
+  if (meets && !surface_vertex_near(r, t, z, patch)) return LEVEL_SURFACE;
   for (uint32_t i = 0; i < 4; i++)
     if (facet_bad(r, t, i)) return LEVEL_SURFACE;
   if (meets && ti->r2 >= r->four_delta2 && in_box(r->dt, ti->cc)) return LEVEL_R2;
@@ -164,7 +177,7 @@ int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a)
   uint32_t patch;
   bool meets = ball_meets_interface(r, ti, z, &patch, &d2);
   a->dist2 = d2;
-  if (meets && !vgrid_has_within(&r->surf, dt, z, r->p.delta, patch)) { /* R1 */
+  if (meets && !surface_vertex_near(r, t, z, patch)) { /* R1 */
     memcpy(a->p, z, sizeof z);
     a->patch = patch;
     a->kind = I2M_VK_SURFACE;

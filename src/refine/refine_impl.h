@@ -51,7 +51,7 @@ static inline uint32_t patch_key(int a, int b) { return a < b ? ((uint32_t)a << 
  *  vertex.  Used for the surface vertices (tag: the interface patch) and for the free
  *  vertices close to an interface (R7's candidates). */
 typedef struct {
-  double h;           /* cell side */
+  double h, inv_h;    /* cell side and its inverse */
   double origin[3];   /* corner of cell (0,0,0) */
   uint32_t nc[3];     /* cells along each axis (points outside are clamped into the border) */
   uint32_t ncells;

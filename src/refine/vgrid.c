@@ -10,8 +10,8 @@
 
 static uint32_t cell_axis(const vgrid_t *g, int a, double x)
 {
-  double u = floor((x - g->origin[a]) / g->h);
-  return u < 0 ? 0 : u >= (double)g->nc[a] ? g->nc[a] - 1 : (uint32_t)u;
+  double u = (x - g->origin[a]) * g->inv_h; /* clamped, then truncated: no floor() call */
+  return !(u >= 0) ? 0 : u >= (double)g->nc[a] ? g->nc[a] - 1 : (uint32_t)u;
 }
 
 static uint32_t cell_of(const vgrid_t *g, const double p[3])
@@ -32,6 +32,7 @@ i2m_err_t vgrid_init(vgrid_t *g, const double lo[3], const double hi[3], double 
     }
     if (n <= VGRID_MAX_CELLS) {
       g->h = h;
+      g->inv_h = 1.0 / h;
       g->ncells = (uint32_t)n;
       break;
     }

@@ -136,14 +136,13 @@ int worker_step(i2m_refine_worker_t *w)
   }
   w->st.insertions++;
   w->st.rule[a.rule]++;
+  /* the new vertex joins its grid before its tets are judged (R1 looks at it) */
+  if (a.kind == I2M_VK_SURFACE && vgrid_insert(&w->r->surf, dt, v, a.patch) != I2M_OK) return -1;
+  if (a.kind == I2M_VK_FREE && a.dist2 <= w->r->four_delta2 && vgrid_insert(&w->r->freev, dt, v, 0) != I2M_OK)
+    return -1; /* a free vertex a future surface vertex may have to remove */
   if (keep_created(w) != I2M_OK || worker_process_created(w, w->created, w->ncreated) != I2M_OK) return -1;
   i2m_dt_unlock_all(&w->ctx);
-  if (a.kind == I2M_VK_SURFACE) {
-    if (vgrid_insert(&w->r->surf, dt, v, a.patch) != I2M_OK) return -1;
-    if (apply_r7(w, v) != I2M_OK) return -1;
-  } else if (a.dist2 <= w->r->four_delta2 && vgrid_insert(&w->r->freev, dt, v, 0) != I2M_OK) {
-    return -1; /* a free vertex a future surface vertex may have to remove */
-  }
+  if (a.kind == I2M_VK_SURFACE && apply_r7(w, v) != I2M_OK) return -1;
   /* the point may have gone in elsewhere (a neighbour's ball, a walk): a tet that survives
    * keeps whatever else is wrong with it, so it goes back to the lists */
   if (i2m_dt_meta(dt, b.t) == b.meta && worker_push(w, b.t) != I2M_OK) return -1;

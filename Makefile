@@ -92,7 +92,7 @@ DEPS_STAMP := build/.deps-ok
 
 # ---- build rules --------------------------------------------------------------------------
 .SECONDARY:
-.PHONY: all lib programs unit-tests check check-unit check-scripts check-layers bench demo deps clean
+.PHONY: all lib programs unit-tests check check-unit check-scripts check-layers check-tsan bench demo deps clean
 
 all: $(PROGRAMS) $(LIB)
 lib: $(LIB)
@@ -154,7 +154,12 @@ check: $(DEPS_STAMP)
 	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=address,undefined all unit-tests
 	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=address,undefined check-unit
 	$(Q)$(MAKE) --no-print-directory WERROR=1 check-scripts
+	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=thread all $(BUILD_TSAN_TESTS)
+	$(Q)sh tests/run_tsan.sh
 	@echo "make check: all tests passed"
+
+# the threaded code under ThreadSanitizer (tests/run_tsan.sh runs these)
+BUILD_TSAN_TESTS := build/tsan/tests/test_threads_refine
 
 check-unit: $(UNIT_BIN)
 	$(Q)sh tests/run_unit.sh $(BUILD)/tests $(CONFIG)
@@ -164,6 +169,10 @@ check-scripts: all
 
 check-layers:
 	$(Q)sh tools/check_layers.sh
+
+check-tsan:
+	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=thread all $(BUILD_TSAN_TESTS)
+	$(Q)sh tests/run_tsan.sh
 
 # ---- benchmarks and demo --------------------------------------------------------------------
 bench: all $(BENCH_SRC:bench/%.c=$(BUILD)/bench/%)

@@ -104,13 +104,16 @@ typedef struct i2m_dt_ctx {
   i2m_dt_bface_t *bnd; uint32_t nbnd, cap_bnd;    /* cavity boundary faces */
   uint32_t *newt; uint32_t nnew, cap_new;         /* tets created by the last operation */
   uint32_t *held; uint32_t nheld, cap_held;       /* vertex locks held = local vertices */
-  double *rows; uint32_t cap_rows;                /* [local vertex][4] translated, lifted */
+  double *rows;                                   /* [cap_held][4] translated, lifted */
+  uint32_t *rowstamp;                             /* [cap_held] epoch its row was made for */
+  uint32_t epoch;                                 /* insertion counter (rows' validity) */
   uint32_t *cavl; uint32_t cap_cavl;              /* [cavity tet][4] local vertex indices */
   uint32_t *etab2; uint32_t lcap;                 /* [lcap][lcap] edge table of local ids */
   struct i2m_dt_edge *etab; uint32_t ecap, stamp; /* edge table (adjacency of new tets) */
   uint32_t *pool; uint32_t npool, cap_pool;       /* this context's dead tet slots */
   uint32_t fresh_next, fresh_end;                 /* reserved range of fresh slots */
   uint32_t *vpool; uint32_t nvpool, cap_vpool;    /* dead vertex slots */
+  uint32_t vfresh_next, vfresh_end;               /* reserved range of fresh vertex slots */
   uint64_t rng;            /**< xorshift state for the walk */
   struct i2m_dt_removal *rm; /**< owned: scratch for vertex removal, created on first use */
   /* statistics */
@@ -155,6 +158,11 @@ i2m_dt_status_t i2m_dt_remove(i2m_dt_ctx_t *ctx, uint32_t v);
 
 /** Releases every vertex lock held by the context. */
 void i2m_dt_unlock_all(i2m_dt_ctx_t *ctx);
+
+/** Takes the locks of the four vertices v4 (threaded runs; no-op otherwise).  False when
+ *  another context holds one: the locks taken so far stay held (release with
+ *  i2m_dt_unlock_all); ctx->conflict_owner names the holder. */
+bool i2m_dt_lock_tet(i2m_dt_ctx_t *ctx, const uint32_t v4[4]);
 
 /** Bulk insertion of n points (xyz[3n]); point k gets global id gid0 + k.  Points are
  *  inserted in BRIO order along a Hilbert curve (seeded by @p seed).  Duplicates are

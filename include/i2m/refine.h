@@ -75,6 +75,15 @@ typedef struct {
   double seconds;
 } i2m_refine_stats_t;
 
+/** Result of one refinement step of a worker. */
+enum {
+  I2M_STEP_IDLE = 0,     /**< nothing to do: the worker's lists are empty */
+  I2M_STEP_DONE = 1,     /**< an element was treated (or found stale) */
+  I2M_STEP_ROLLBACK = 2, /**< another thread holds a vertex; the element went back to the list */
+  I2M_STEP_FULL = 3,     /**< the reserved capacity is exhausted; grow, then retry */
+  I2M_STEP_ERROR = -1    /**< an error (message set) */
+};
+
 typedef struct i2m_refine i2m_refine_t;
 typedef struct i2m_refine_worker i2m_refine_worker_t;
 
@@ -93,6 +102,36 @@ i2m_dt_t *i2m_refine_dt(i2m_refine_t *r);
 const i2m_refine_params_t *i2m_refine_params(const i2m_refine_t *r);
 /** Statistics summed over the workers. */
 void i2m_refine_get_stats(const i2m_refine_t *r, i2m_refine_stats_t *s);
+
+/* ---- for the threads layer: several workers on one triangulation ---- */
+
+/** Replaces the single worker by @p n workers (n >= 1; n > 1 lock vertices), moving the
+ *  bad elements found so far to worker 0; makes room for growth.  Not while refining. */
+i2m_err_t i2m_refine_set_workers(i2m_refine_t *r, int n);
+int i2m_refine_nworkers(const i2m_refine_t *r);
+/** One step of worker k (thread safe across different k): an I2M_STEP_* value. */
+int i2m_refine_step(i2m_refine_t *r, int k);
+/** After I2M_STEP_ROLLBACK: the worker index (0-based) that held the lock, or -1. */
+int i2m_refine_conflict_worker(const i2m_refine_t *r, int k);
+/** Bad elements and pending removals of worker k. */
+size_t i2m_refine_backlog(const i2m_refine_t *r, int k);
+/** Moves about half of worker from's backlog to worker to (to must be idle); returns the
+ *  number moved. */
+size_t i2m_refine_give(i2m_refine_t *r, int from, int to);
+/** Spreads worker 0's backlog over all workers by position (slabs along the longest axis),
+ *  so that threads start in different places.  Not while refining. */
+i2m_err_t i2m_refine_spread(i2m_refine_t *r);
+/** Grows the triangulation's capacity (every worker paused). */
+i2m_err_t i2m_refine_grow(i2m_refine_t *r);
+/** Multiplies every size bound by f (the coarse phase uses f > 1).  Not while refining. */
+void i2m_refine_set_size_scale(i2m_refine_t *r, double f);
+/** Worker k of n classifies the live tets k, k+n, ... and queues the bad ones (after a change
+ *  of bounds; all n workers run it, nothing else runs). */
+i2m_err_t i2m_refine_reclassify(i2m_refine_t *r, int k, int n);
+/** Statistics of worker k. */
+void i2m_refine_worker_stats(const i2m_refine_t *r, int k, i2m_refine_stats_t *s);
+/** Returns the workers' pooled slots to the triangulation (after a parallel phase). */
+void i2m_refine_sync(i2m_refine_t *r);
 
 /** The labelled mesh: tets whose circumcentre is inside, with their label value, and the
  *  interface triangles, in world coordinates, compacted.  Not collective. */

@@ -6,6 +6,7 @@
 
 #include "i2m/quality.h"
 #include "i2m/refine.h"
+#include "i2m/threads.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -26,6 +27,7 @@ typedef struct {
   double total_seconds;
   size_t peak_rss;                   /**< bytes */
   int threads, ranks;
+  const i2m_threads_report_t *team;  /**< per-thread figures, or NULL */
   const i2m_quality_t *quality;
 } i2m_report_t;
 

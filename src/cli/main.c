@@ -9,6 +9,7 @@
 #include "i2m/quality.h"
 #include "i2m/refine.h"
 #include "i2m/report.h"
+#include "i2m/threads.h"
 #include "options.h"
 
 typedef struct {
@@ -18,6 +19,7 @@ typedef struct {
   i2m_refine_t *ref;
   i2m_tetmesh_t *mesh;
   i2m_quality_t quality;
+  i2m_threads_report_t team;
   i2m_report_t rep;
   double t0, tphase;
 } run_t;
@@ -43,7 +45,8 @@ static i2m_err_t run_mesher(run_t *r)
 
   phase_begin(r, "refinement");
   I2M_CALL(i2m_refine_create(r->img, r->edt, &o->params, &r->ref));
-  I2M_CALL(i2m_refine_run(r->ref));
+  i2m_threads_opts_t to = {o->threads, o->coarse_factor, !o->no_pin};
+  I2M_CALL(i2m_threads_refine(r->ref, &to, &r->team));
   if (o->check) I2M_CALL(i2m_dt_check(i2m_refine_dt(r->ref), true));
   phase_end(r, I2M_PHASE_REFINE);
 
@@ -76,8 +79,9 @@ static i2m_err_t report(run_t *r)
   rep->working_tets = i2m_dt_count_tets(i2m_refine_dt(r->ref));
   rep->total_seconds = i2m_wtime() - r->t0;
   rep->peak_rss = i2m_peak_rss_bytes();
-  rep->threads = 1;
+  rep->threads = r->team.threads;
   rep->ranks = 1;
+  rep->team = &r->team;
   rep->quality = &r->quality;
   if (!r->opt.quiet) i2m_report_print(stdout, rep);
   if (r->opt.report) I2M_CALL(i2m_report_write_json(r->opt.report, rep));
@@ -87,6 +91,7 @@ static i2m_err_t report(run_t *r)
 static void run_free(run_t *r)
 {
   i2m_quality_free(&r->quality);
+  i2m_threads_report_free(&r->team);
   i2m_tetmesh_destroy(&r->mesh);
   i2m_refine_destroy(&r->ref);
   i2m_edt_destroy(&r->edt);

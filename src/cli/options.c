@@ -22,7 +22,9 @@ void cli_usage(FILE *f)
           "  --size-label L=S      maximum circumradius S for the tets of label L (repeatable)\n"
           "  --region X0,Y0,Z0,X1,Y1,Z1:S[:R]\n"
           "                        a world box (mm) whose tets get size S and ratio R (repeatable)\n"
-          "  --threads T           worker threads (default: the cores available)\n"
+          "  --threads T           worker threads (default: the cores the process may use)\n"
+          "  --coarse-factor F     with size bounds, a coarse phase at F x the sizes first (default 4)\n"
+          "  --no-pin              do not bind the threads to cores\n"
           "  --report FILE.json    write the run report as JSON\n"
           "  --seed N              random seed (default 1)\n"
           "  --check               check the triangulation's validity before writing (slow)\n"
@@ -119,6 +121,9 @@ static i2m_err_t parse_valued(const char *opt, const char *val, cli_options_t *o
   else if (!strcmp(opt, "--seed")) {
     I2M_CALL(parse_int(opt, val, &iv));
     p->seed = (uint64_t)iv;
+  } else if (!strcmp(opt, "--coarse-factor")) {
+    I2M_CALL(parse_double(opt, val, &o->coarse_factor));
+    I2M_CHECK(o->coarse_factor >= 1, I2M_ERR_ARG, "--coarse-factor must be at least 1 (got %s)", val);
   } else if (!strcmp(opt, "--threads")) {
     I2M_CALL(parse_int(opt, val, &iv));
     I2M_CHECK(iv >= 1 && iv <= 4096, I2M_ERR_ARG, "--threads must be between 1 and 4096 (got %s)", val);
@@ -131,6 +136,7 @@ i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o)
 {
   memset(o, 0, sizeof *o);
   i2m_refine_params_default(&o->params);
+  o->coarse_factor = 4.0;
   int nls = 0, nrg = 0;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i];
@@ -139,6 +145,7 @@ i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o)
     else if (!strcmp(a, "--quiet") || !strcmp(a, "-q")) o->quiet = 1;
     else if (!strcmp(a, "--verbose") || !strcmp(a, "-v")) o->verbose = 1;
     else if (!strcmp(a, "--check")) o->check = 1;
+    else if (!strcmp(a, "--no-pin")) o->no_pin = 1;
     else if (a[0] == '-' && a[1] != '\0') {
       I2M_CHECK(i + 1 < argc, I2M_ERR_ARG, "option %s needs a value (see i2m --help)", a);
       I2M_CALL(parse_valued(a, argv[i + 1], o, &nls, &nrg));

@@ -23,6 +23,7 @@ i2m_err_t i2m_dt_reserve(i2m_dt_t *dt, uint32_t nv, uint32_t nt)
   if (nv > dt->cap_v) {
     I2M_CALL(i2m_realloc((size_t)nv * 4, sizeof(double), &dt->xyzw));
     I2M_CALL(i2m_realloc(nv, sizeof(uint8_t), &dt->vkind));
+    memset(dt->vkind + dt->cap_v, I2M_VK_DEAD, nv - dt->cap_v); /* slots handed out in chunks */
     I2M_CALL(i2m_realloc(nv, sizeof(uint32_t), &dt->vtet));
     I2M_CALL(grow_atomic_u32(&dt->vlock, dt->cap_v, nv, 0));
     dt->cap_v = nv;
@@ -165,6 +166,7 @@ i2m_err_t i2m_dt_ctx_init(i2m_dt_ctx_t *ctx, i2m_dt_t *dt, uint32_t owner, bool 
   I2M_CHECK(ctx->owner <= I2M_DT_MAX_OWNERS, I2M_ERR_ARG, "at most %u threads per process", I2M_DT_MAX_OWNERS);
   ctx->locking = locking;
   ctx->rng = 0x9E3779B97F4A7C15ull ^ ((uint64_t)owner * 0xD1B54A32D192ED03ull);
+  ctx->epoch = 1;
   I2M_CALL(ctx_edges_begin(ctx, 64));
   return I2M_OK;
 }
@@ -177,6 +179,7 @@ void i2m_dt_ctx_free(i2m_dt_ctx_t *ctx)
   i2m_free(&ctx->newt);
   i2m_free(&ctx->held);
   i2m_free(&ctx->rows);
+  i2m_free(&ctx->rowstamp);
   i2m_free(&ctx->cavl);
   i2m_free(&ctx->etab2);
   i2m_free(&ctx->etab);
@@ -202,10 +205,33 @@ void i2m_dt_ctx_flush(i2m_dt_ctx_t *ctx)
   for (uint32_t k = 0; k < ctx->nvpool; k++)
     if (push_u32(&dt->free_v, &dt->nfree_v, &dt->cap_free_v, ctx->vpool[k]) != I2M_OK) break;
   ctx->nvpool = 0;
-  /* fresh slots reserved but unused become dead slots in the shared list */
+  /* fresh slots reserved but unused become dead slots in the shared lists */
   for (uint32_t t = ctx->fresh_next; t < ctx->fresh_end; t++)
     if (push_u32(&dt->free_t, &dt->nfree_t, &dt->cap_free_t, t) != I2M_OK) break;
   ctx->fresh_next = ctx->fresh_end = 0;
+  for (uint32_t v = ctx->vfresh_next; v < ctx->vfresh_end; v++) {
+    dt->vkind[v] = I2M_VK_DEAD;
+    if (push_u32(&dt->free_v, &dt->nfree_v, &dt->cap_free_v, v) != I2M_OK) break;
+  }
+  ctx->vfresh_next = ctx->vfresh_end = 0;
+}
+
+i2m_err_t ctx_hold_room(i2m_dt_ctx_t *ctx)
+{
+  uint32_t k = ctx->nheld;
+  if (k < ctx->cap_held) return I2M_OK;
+  I2M_CHECK(k < (1u << (32 - I2M_DT_OWNER_BITS)), I2M_ERR_MEMORY, "a cavity with over 4 M vertices");
+  uint32_t cap = k + k / 2 + 64;
+  I2M_CALL(i2m_realloc(cap, sizeof *ctx->held, &ctx->held));
+  I2M_CALL(i2m_realloc(4 * (size_t)cap, sizeof *ctx->rows, &ctx->rows));
+  I2M_CALL(i2m_realloc(cap, sizeof *ctx->rowstamp, &ctx->rowstamp));
+  ctx->cap_held = cap;
+  return I2M_OK;
+}
+
+bool i2m_dt_lock_tet(i2m_dt_ctx_t *ctx, const uint32_t v4[4])
+{
+  return !ctx->locking || vlock_take_tet(ctx, v4);
 }
 
 i2m_err_t ctx_pool_push(i2m_dt_ctx_t *ctx, uint32_t t) { return push_u32(&ctx->pool, &ctx->npool, &ctx->cap_pool, t); }
@@ -233,6 +259,27 @@ static bool take_fresh_tets(i2m_dt_ctx_t *ctx)
   }
 }
 
+/* Moves up to FRESH_CHUNK never-used vertex slots into the context's fresh range (threaded:
+ * the shared high-water mark only moves by compare-and-swap within the capacity). */
+static bool take_fresh_vertices(i2m_dt_ctx_t *ctx)
+{
+  i2m_dt_t *dt = ctx->dt;
+  for (uint32_t v = ctx->vfresh_next; v < ctx->vfresh_end; v++)
+    if (ctx_vpool_push(ctx, v) != I2M_OK) return false;
+  ctx->vfresh_next = ctx->vfresh_end = 0;
+  uint32_t cur = atomic_load_explicit(&dt->nv_atomic, memory_order_relaxed);
+  for (;;) {
+    if (cur >= dt->cap_v) return false;
+    uint32_t take = dt->cap_v - cur < FRESH_CHUNK ? dt->cap_v - cur : FRESH_CHUNK;
+    if (atomic_compare_exchange_weak_explicit(&dt->nv_atomic, &cur, cur + take, memory_order_relaxed,
+                                              memory_order_relaxed)) {
+      ctx->vfresh_next = cur;
+      ctx->vfresh_end = cur + take;
+      return true;
+    }
+  }
+}
+
 bool ctx_ensure_slots(i2m_dt_ctx_t *ctx, uint32_t ntets, uint32_t nverts)
 {
   i2m_dt_t *dt = ctx->dt;
@@ -255,10 +302,8 @@ bool ctx_ensure_slots(i2m_dt_ctx_t *ctx, uint32_t ntets, uint32_t nverts)
     }
     if (!take_fresh_tets(ctx)) return false;
   }
-  if (ctx->nvpool < nverts) {
-    uint32_t cur = atomic_load_explicit(&dt->nv_atomic, memory_order_relaxed);
-    if (cur + nverts - ctx->nvpool > dt->cap_v) return false;
-  }
+  while (ctx->nvpool + (ctx->vfresh_end - ctx->vfresh_next) < nverts)
+    if (!take_fresh_vertices(ctx)) return false;
   return true;
 }
 
@@ -277,10 +322,34 @@ uint32_t ctx_vertex_slot(i2m_dt_ctx_t *ctx)
 {
   i2m_dt_t *dt = ctx->dt;
   if (ctx->nvpool) return ctx->vpool[--ctx->nvpool];
+  if (ctx->vfresh_next < ctx->vfresh_end) return ctx->vfresh_next++;
   if (!ctx->locking && dt->nfree_v) return dt->free_v[--dt->nfree_v];
   uint32_t v = atomic_fetch_add_explicit(&dt->nv_atomic, 1, memory_order_relaxed);
   I2M_CHECK_ABORT(v < dt->cap_v, "vertex slot requested beyond the reserved capacity");
   return v;
+}
+
+uint32_t ctx_vertex_slot_locked(i2m_dt_ctx_t *ctx, uint32_t word)
+{
+  i2m_dt_t *dt = ctx->dt;
+  for (uint32_t tries = ctx->nvpool; tries > 0; tries--) { /* recycled slots first */
+    uint32_t v = ctx->vpool[ctx->nvpool - 1];
+    uint32_t expected = 0;
+    if (atomic_compare_exchange_strong_explicit(&dt->vlock[v], &expected, word, memory_order_acquire,
+                                                memory_order_relaxed)) {
+      ctx->nvpool--;
+      return v;
+    }
+    ctx->vpool[ctx->nvpool - 1] = ctx->vpool[0]; /* busy: to the bottom, try the next */
+    ctx->vpool[0] = v;
+  }
+  for (;;) { /* never-used slots: nobody refers to them */
+    if (ctx->vfresh_next == ctx->vfresh_end && !take_fresh_vertices(ctx)) return I2M_DT_NONE;
+    uint32_t v = ctx->vfresh_next++, expected = 0;
+    if (atomic_compare_exchange_strong_explicit(&dt->vlock[v], &expected, word, memory_order_acquire,
+                                                memory_order_relaxed))
+      return v;
+  }
 }
 
 /* ---- edge table ---- */

@@ -27,20 +27,24 @@ static inline void set_gid(i2m_dt_t *dt, uint32_t v, i2m_gidx_t g)
 /* ---- vertex locks ---- */
 i2m_err_t ctx_grow_u32(uint32_t **a, uint32_t *cap, uint32_t need);
 
-/* Takes the lock of vertex v for the context (re-entrant).  False: held by another. */
+/* Room for one more held vertex (held[], rows[], rowstamp[] grow together). */
+i2m_err_t ctx_hold_room(i2m_dt_ctx_t *ctx);
+
+/* Takes the lock of vertex v for the context (re-entrant), numbering it locally (its row is
+ * made when an insertion first needs it).  False: held by another, or out of memory. */
 static inline bool vlock_take(i2m_dt_ctx_t *ctx, uint32_t v)
 {
   _Atomic uint32_t *L = &ctx->dt->vlock[v];
   uint32_t cur = atomic_load_explicit(L, memory_order_relaxed);
   if ((cur & I2M_DT_OWNER_MASK) == ctx->owner) return true;
-  uint32_t expected = 0;
-  if (ctx->nheld == ctx->cap_held && ctx_grow_u32(&ctx->held, &ctx->cap_held, ctx->nheld + 1) != I2M_OK) {
+  if (ctx->nheld == ctx->cap_held && ctx_hold_room(ctx) != I2M_OK) {
     ctx->conflict_owner = 0;
     return false;
   }
-  uint32_t word = ctx->owner | (ctx->nheld << I2M_DT_OWNER_BITS);
+  uint32_t expected = 0, word = ctx->owner | (ctx->nheld << I2M_DT_OWNER_BITS);
   if (cur == 0 && atomic_compare_exchange_strong_explicit(L, &expected, word, memory_order_acquire,
                                                           memory_order_relaxed)) {
+    ctx->rowstamp[ctx->nheld] = ctx->epoch - 1; /* no row yet */
     ctx->held[ctx->nheld++] = v;
     return true;
   }
@@ -82,6 +86,10 @@ bool ctx_ensure_slots(i2m_dt_ctx_t *ctx, uint32_t ntets, uint32_t nverts);
 /* Hands out one tet / vertex slot (after ctx_ensure_slots succeeded). */
 uint32_t ctx_tet_slot(i2m_dt_ctx_t *ctx);
 uint32_t ctx_vertex_slot(i2m_dt_ctx_t *ctx);
+/* Threaded runs: a vertex slot whose lock word the context could take by compare-and-swap
+ * (a recycled slot may still be locked by a thread holding a stale reference to it), or
+ * I2M_DT_NONE when the reserve is exhausted.  The lock is the context's, not yet in held[]. */
+uint32_t ctx_vertex_slot_locked(i2m_dt_ctx_t *ctx, uint32_t word);
 /* Puts a killed tet slot into the context's pool. */
 i2m_err_t ctx_pool_push(i2m_dt_ctx_t *ctx, uint32_t t);
 i2m_err_t ctx_vpool_push(i2m_dt_ctx_t *ctx, uint32_t v);

@@ -25,35 +25,36 @@ static i2m_dt_status_t cavity_abandon(i2m_dt_ctx_t *ctx, i2m_dt_status_t why)
 }
 
 /* Gives vertex v a local index for this insertion: takes its lock word (a compare-and-swap
- * in threaded runs) and caches its row translated by p and lifted.  Returns the index, -1 if
- * another thread holds the vertex, -2 when out of memory. */
+ * in threaded runs) and caches its row translated by p and lifted (a vertex locked earlier
+ * in the same operation gets its row on first use).  Returns the index, -1 if another
+ * thread holds the vertex, -2 when out of memory. */
 static inline int64_t local_vertex(i2m_dt_ctx_t *ctx, uint32_t v, const double *p)
 {
   _Atomic uint32_t *L = &ctx->dt->vlock[v];
   uint32_t cur = atomic_load_explicit(L, memory_order_relaxed);
-  if ((cur & I2M_DT_OWNER_MASK) == ctx->owner) return cur >> I2M_DT_OWNER_BITS;
-  uint32_t k = ctx->nheld;
-  if (I2M_UNLIKELY(k == ctx->cap_held || k == ctx->cap_rows)) {
-    uint32_t cap = k + k / 2 + 64;
-    if (k >= (1u << (32 - I2M_DT_OWNER_BITS)) || i2m_realloc(cap, sizeof *ctx->held, &ctx->held) != I2M_OK ||
-        i2m_realloc(4 * (size_t)cap, sizeof *ctx->rows, &ctx->rows) != I2M_OK)
-      return -2;
-    ctx->cap_held = ctx->cap_rows = cap;
-  }
-  uint32_t word = ctx->owner | (k << I2M_DT_OWNER_BITS);
-  if (ctx->locking) {
-    uint32_t expected = 0;
-    if (cur != 0 || !atomic_compare_exchange_strong_explicit(L, &expected, word, memory_order_acquire,
-                                                             memory_order_relaxed)) {
-      ctx->conflict_owner = (cur ? cur : expected) & I2M_DT_OWNER_MASK;
-      return -1;
-    }
+  uint32_t k;
+  if ((cur & I2M_DT_OWNER_MASK) == ctx->owner) {
+    k = cur >> I2M_DT_OWNER_BITS;
+    if (I2M_LIKELY(ctx->rowstamp[k] == ctx->epoch)) return k;
   } else {
-    atomic_store_explicit(L, word, memory_order_relaxed);
+    k = ctx->nheld;
+    if (I2M_UNLIKELY(k == ctx->cap_held) && ctx_hold_room(ctx) != I2M_OK) return -2;
+    uint32_t word = ctx->owner | (k << I2M_DT_OWNER_BITS);
+    if (ctx->locking) {
+      uint32_t expected = 0;
+      if (cur != 0 || !atomic_compare_exchange_strong_explicit(L, &expected, word, memory_order_acquire,
+                                                               memory_order_relaxed)) {
+        ctx->conflict_owner = (cur ? cur : expected) & I2M_DT_OWNER_MASK;
+        return -1;
+      }
+    } else {
+      atomic_store_explicit(L, word, memory_order_relaxed);
+    }
+    ctx->held[k] = v;
+    ctx->nheld = k + 1;
   }
-  ctx->held[k] = v;
+  ctx->rowstamp[k] = ctx->epoch;
   i2m_insphere_row(i2m_dt_xyz(ctx->dt, v), p, ctx->rows + 4 * (size_t)k);
-  ctx->nheld = k + 1;
   return k;
 }
 
@@ -191,11 +192,19 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   if (!ctx_ensure_slots(ctx, extra, 1)) return I2M_DT_FULL;
   if (ctx_grow_u32(&ctx->newt, &ctx->cap_new, nb) != I2M_OK) return I2M_DT_FULL;
   if (nc > nb && ctx_grow_u32(&ctx->pool, &ctx->cap_pool, ctx->npool + (nc - nb)) != I2M_OK) return I2M_DT_FULL;
-  if (ctx->locking && ctx_grow_u32(&ctx->held, &ctx->cap_held, ctx->nheld + 1) != I2M_OK) return I2M_DT_FULL;
+  if (ctx->locking && ctx_hold_room(ctx) != I2M_OK) return I2M_DT_FULL;
   bool direct = edge_table_ready(ctx);
   if (!direct && ctx_edges_begin(ctx, 3 * nb) != I2M_OK) return I2M_DT_FULL;
 
-  uint32_t v = ctx_vertex_slot(ctx);
+  uint32_t v;
+  if (ctx->locking) { /* the new vertex is ours until the caller unlocks */
+    v = ctx_vertex_slot_locked(ctx, ctx->owner | (ctx->nheld << I2M_DT_OWNER_BITS));
+    if (v == I2M_DT_NONE) return I2M_DT_FULL;
+    ctx->rowstamp[ctx->nheld] = ctx->epoch - 1;
+    ctx->held[ctx->nheld++] = v;
+  } else {
+    v = ctx_vertex_slot(ctx);
+  }
   double *x = dt->xyzw + 4 * (size_t)v;
   x[0] = p[0];
   x[1] = p[1];
@@ -203,10 +212,6 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   set_gid(dt, v, gid);
   dt->vkind[v] = kind;
   dt->vtet[v] = ctx->cav[0];
-  if (ctx->locking) { /* the new vertex is ours until the caller unlocks */
-    atomic_store_explicit(&dt->vlock[v], ctx->owner, memory_order_relaxed);
-    ctx->held[ctx->nheld++] = v;
-  }
   uint32_t *tvs = dt->tv, *tns = dt->tn;
   ctx->nnew = 0;
   for (uint32_t k = 0; k < nb; k++) {
@@ -242,7 +247,11 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
                               uint32_t seed, uint32_t seed_meta, uint32_t *vout)
 {
   i2m_dt_t *dt = ctx->dt;
-  I2M_CHECK_ABORT(ctx->nheld == 0, "i2m_dt_insert: the previous operation's vertices are still held");
+  I2M_CHECK_ABORT(ctx->locking || ctx->nheld == 0, "i2m_dt_insert: the previous operation's vertices are still held");
+  if (++ctx->epoch == 0) { /* wrapped: every row stamp is stale */
+    memset(ctx->rowstamp, 0, ctx->cap_held * sizeof *ctx->rowstamp);
+    ctx->epoch = 1;
+  }
   ctx->ncav = ctx->nbnd = ctx->nnew = 0;
   const uint32_t *sv = dt->tv + 4 * (size_t)seed;
   uint32_t v4[4], l4[4];

@@ -146,13 +146,16 @@ static i2m_err_t lf_prepare(struct i2m_dt_removal *rm, uint32_t n)
   return I2M_OK;
 }
 
-/* ---- step 1: the star of v, locked and marked ---- */
+/* ---- step 1: the star of v, locked and marked.  A tet is marked only by a thread that holds
+ * at least one of its faces (the first one: all four vertices), so that two threads can
+ * never mark the same tet, and one's rollback never clears the other's mark. ---- */
 static i2m_dt_status_t star_collect(i2m_dt_ctx_t *ctx, uint32_t v)
 {
   i2m_dt_t *dt = ctx->dt;
-  if (ctx->locking && !vlock_take(ctx, v)) return I2M_DT_ROLLBACK;
-  uint32_t t0 = dt->vtet[v];
   ctx->ncav = 0;
+  if (ctx->locking && !vlock_take(ctx, v)) return I2M_DT_ROLLBACK;
+  uint32_t t0 = dt->vtet[v]; /* stable: it contains v, which we hold */
+  if (ctx->locking && !vlock_take_tet(ctx, dt->tv + 4 * (size_t)t0)) return I2M_DT_ROLLBACK;
   if (ctx_grow_u32(&ctx->cav, &ctx->cap_cav, 1) != I2M_OK) return I2M_DT_FULL;
   ctx->cav[ctx->ncav++] = t0;
   meta_store(dt, t0, i2m_dt_meta(dt, t0) | I2M_TM_MARK);

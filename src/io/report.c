@@ -34,6 +34,16 @@ void i2m_report_print(FILE *f, const i2m_report_t *r)
   fprintf(f, "total %.2f s\n", r->total_seconds);
   fprintf(f, "  speed        %.3g tets/s (refinement), %d thread(s), %d rank(s)\n", tets_per_second(r), r->threads,
           r->ranks);
+  if (r->team && r->team->threads > 1) {
+    const i2m_threads_report_t *t = r->team;
+    fprintf(f, "  threads      %s; %lld capacity pauses\n", t->binding, (long long)t->pauses);
+    for (int k = 0; k < t->threads; k++) {
+      const i2m_thread_figures_t *g = &t->thread[k];
+      fprintf(f, "    thread %-3d core %-3d %9lld insertions %7lld removals %8lld rollbacks %6lld waits, idle %.2f s\n", k,
+              g->core, (long long)g->insertions, (long long)g->removals, (long long)g->rollbacks, (long long)g->waits,
+              g->idle_seconds);
+    }
+  }
   fprintf(f, "  memory       peak %.1f MB, %.0f bytes per output tet\n", (double)r->peak_rss / 1048576.0,
           r->nt ? (double)r->peak_rss / (double)r->nt : 0.0);
   if (q) {
@@ -139,6 +149,23 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
           r->total_seconds > 0 ? (double)r->nt / r->total_seconds : 0);
   fprintf(f, "  \"memory\": {\"peak_rss_bytes\": %zu, \"bytes_per_tet\": %.2f},\n", r->peak_rss,
           r->nt ? (double)r->peak_rss / (double)r->nt : 0.0);
+  if (r->team) {
+    const i2m_threads_report_t *t = r->team;
+    fprintf(f, "  \"threads\": {\"count\": %d, \"pinned\": %s, \"binding\": ", t->threads, t->pinned ? "true" : "false");
+    json_str(f, t->binding);
+    fprintf(f, ", \"capacity_pauses\": %lld, \"coarse_seconds\": %.4f, \"fine_seconds\": %.4f, \"per_thread\": [",
+            (long long)t->pauses, t->coarse_seconds, t->fine_seconds);
+    for (int k = 0; k < t->threads; k++) {
+      const i2m_thread_figures_t *g = &t->thread[k];
+      fprintf(f, "%s\n    {\"thread\": %d, \"core\": %d, \"insertions\": %lld, \"removals\": %lld, \"rollbacks\": %lld, "
+                 "\"contention_waits\": %lld, \"handoffs\": %lld, \"elements_given\": %lld, \"busy_seconds\": %.4f, "
+                 "\"idle_seconds\": %.4f, \"wait_seconds\": %.4f}",
+              k ? "," : "", k, g->core, (long long)g->insertions, (long long)g->removals, (long long)g->rollbacks,
+              (long long)g->waits, (long long)g->handoffs, (long long)g->given, g->busy_seconds, g->idle_seconds,
+              g->wait_seconds);
+    }
+    fprintf(f, "]},\n");
+  }
   if (r->quality) json_quality(f, r->quality);
   fprintf(f, "  \"version\": \"i2m 0.1\"\n}\n");
   int bad = ferror(f);

@@ -37,7 +37,7 @@ static void local_bounds(const i2m_refine_t *r, const double c[3], int lab, doub
       if (g->ratio < q) q = g->ratio;
     }
   }
-  *size = s;
+  *size = s * r->size_scale;
   *ratio = q;
 }
 
@@ -166,7 +166,7 @@ static bool facet_action(const i2m_refine_t *r, uint32_t t, uint32_t i, action_t
   return false;
 }
 
-int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a)
+int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t skip)
 {
   const i2m_refine_t *r = w->r;
   const i2m_dt_t *dt = r->dt;
@@ -177,14 +177,14 @@ int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a)
   uint32_t patch;
   bool meets = ball_meets_interface(r, ti, z, &patch, &d2);
   a->dist2 = d2;
-  if (meets && !surface_vertex_near(r, t, z, patch)) { /* R1 */
+  if (meets && !(skip & (1u << 1)) && !surface_vertex_near(r, t, z, patch)) { /* R1 */
     memcpy(a->p, z, sizeof z);
     a->patch = patch;
     a->kind = I2M_VK_SURFACE;
     a->rule = 1;
     return 1;
   }
-  for (uint32_t i = 0; i < 4; i++) { /* R5, R6 */
+  for (uint32_t i = 0; i < 4 && !(skip & (1u << 5 | 1u << 6)); i++) { /* R5, R6 */
     int rule = facet_bad(r, t, i);
     if (!rule) continue;
     if (facet_action(r, t, i, a)) {
@@ -194,7 +194,7 @@ int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a)
     }
     w->st.failed++; /* no surface centre could be placed: counted, never silent */
   }
-  if (!in_box(dt, ti->cc)) return 0;
+  if (!in_box(dt, ti->cc) || (skip & (1u << 2 | 1u << 3 | 1u << 4))) return 0;
   if ((meets && ti->r2 >= r->four_delta2) || (ti->label != 0 && volume_bad(r, t, ti))) { /* R2, R3, R4 */
     memcpy(a->p, ti->cc, sizeof a->p);
     a->kind = I2M_VK_FREE;

@@ -1,6 +1,7 @@
 /* Refine layer: parameters, setup of the virtual box, the sequential driver, statistics. */
 #include "refine_impl.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 void i2m_refine_params_default(i2m_refine_params_t *p)
@@ -97,6 +98,7 @@ i2m_err_t i2m_refine_create(const i2m_image_t *img, const i2m_edt_t *edt, const 
   r->img = img;
   r->edt = edt;
   r->p = *params;
+  r->size_scale = 1.0;
   atomic_init(&r->next_gid, 8);
   I2M_CALL_GOTO(err, fail, setup_bounds(r));
   /* the virtual box: the image block (world) grown by its largest extent on every side */
@@ -107,7 +109,7 @@ i2m_err_t i2m_refine_create(const i2m_image_t *img, const i2m_edt_t *edt, const 
     lo[a] -= ext;
     hi[a] += ext;
   }
-  I2M_CALL_GOTO(err, fail, i2m_dt_create(lo, hi, 1 << 16, sizeof(tet_info_t), &r->dt));
+  I2M_CALL_GOTO(err, fail, i2m_dt_create(lo, hi, 1 << 12, sizeof(tet_info_t), &r->dt));
   double ilo[3], ihi[3]; /* the image block, where surface points and their neighbours lie */
   i2m_image_world_bounds(img, ilo, ihi);
   I2M_CALL_GOTO(err, fail, vgrid_init(&r->surf, ilo, ihi, 2.0 * r->p.delta));
@@ -144,12 +146,12 @@ i2m_err_t i2m_refine_run(i2m_refine_t *r)
   i2m_refine_worker_t *w = &r->workers[0];
   double t0 = i2m_wtime();
   int s;
-  while ((s = worker_step(w)) > 0) {
+  while ((s = worker_step(w)) == I2M_STEP_DONE) {
   }
-  I2M_CHECK(s == 0, I2M_ERR_INTERNAL, "refinement failed: %s", i2m_error_message());
+  I2M_CHECK(s == I2M_STEP_IDLE, I2M_ERR_INTERNAL, "refinement failed: %s", i2m_error_message());
   i2m_dt_ctx_flush(&w->ctx);
   w->st.seconds += i2m_wtime() - t0;
-  w->st.rollbacks = w->ctx.n_rollback;
+
   i2m_progress_end(&w->progress, 6 + w->ctx.n_created - w->ctx.n_killed);
   return I2M_OK;
 }
@@ -172,4 +174,158 @@ void i2m_refine_get_stats(const i2m_refine_t *r, i2m_refine_stats_t *s)
     s->tets_created += w->tets_created;
     s->seconds = fmax(s->seconds, w->seconds);
   }
+}
+
+/* ---- several workers (the threads layer drives them) ---- */
+
+i2m_err_t i2m_refine_set_workers(i2m_refine_t *r, int n)
+{
+  I2M_CHECK(n >= 1 && n <= (int)I2M_DT_MAX_OWNERS, I2M_ERR_ARG, "between 1 and %u threads", I2M_DT_MAX_OWNERS);
+  i2m_refine_worker_t *w = NULL;
+  I2M_CALL(i2m_calloc((size_t)n, sizeof *w, &w));
+  for (int k = 0; k < n; k++) {
+    i2m_err_t err = worker_init(&w[k], r, (uint32_t)k + 1, n > 1);
+    if (err != I2M_OK) {
+      for (int j = 0; j < k; j++) worker_free(&w[j]);
+      i2m_free(&w);
+      return err;
+    }
+  }
+  /* the old worker 0's lists, statistics and progress carry over */
+  i2m_refine_worker_t *old = &r->workers[0];
+  for (int l = 0; l < NLEVELS; l++) {
+    w[0].q[l] = old->q[l];
+    old->q[l] = (badlist_t){NULL, 0, 0};
+  }
+  w[0].pend = old->pend;
+  w[0].npend = old->npend;
+  w[0].cap_pend = old->cap_pend;
+  old->pend = NULL;
+  old->npend = old->cap_pend = 0;
+  w[0].st = old->st;
+  w[0].progress = old->progress;
+  w[0].ctx.n_created = old->ctx.n_created;
+  w[0].ctx.n_killed = old->ctx.n_killed;
+  i2m_dt_ctx_flush(&old->ctx);
+  for (int k = 0; k < r->nworkers; k++) worker_free(&r->workers[k]);
+  i2m_free(&r->workers);
+  r->workers = w;
+  r->nworkers = n;
+  if (n > 1) {
+    I2M_CALL(vgrid_enable_locks(&r->freev));
+    I2M_CALL(i2m_refine_grow(r));
+  }
+  return I2M_OK;
+}
+
+int i2m_refine_nworkers(const i2m_refine_t *r) { return r->nworkers; }
+
+int i2m_refine_step(i2m_refine_t *r, int k) { return worker_step(&r->workers[k]); }
+
+int i2m_refine_conflict_worker(const i2m_refine_t *r, int k)
+{
+  uint32_t o = r->workers[k].ctx.conflict_owner;
+  return o >= 1 && (int)o <= r->nworkers ? (int)o - 1 : -1;
+}
+
+size_t i2m_refine_backlog(const i2m_refine_t *r, int k)
+{
+  const i2m_refine_worker_t *w = &r->workers[k];
+  size_t n = w->npend;
+  for (int l = 0; l < NLEVELS; l++) n += w->q[l].n;
+  return n;
+}
+
+size_t i2m_refine_give(i2m_refine_t *r, int from, int to)
+{
+  i2m_refine_worker_t *a = &r->workers[from], *b = &r->workers[to];
+  size_t moved = 0;
+  for (int l = 0; l < NLEVELS; l++) { /* the older half (bottom of the stack): away from a's front */
+    badlist_t *q = &a->q[l];
+    size_t half = q->n / 2;
+    for (size_t i = 0; i < half; i++)
+      if (worker_push_entry(b, l, &q->e[i]) != I2M_OK) return moved;
+    memmove(q->e, q->e + half, (q->n - half) * sizeof *q->e);
+    q->n -= half;
+    moved += half;
+  }
+  return moved;
+}
+
+typedef struct {
+  double key;
+  int level;
+  bad_t b;
+} spread_t;
+
+static int cmp_spread(const void *x, const void *y)
+{
+  double a = ((const spread_t *)x)->key, b = ((const spread_t *)y)->key;
+  return (a > b) - (a < b);
+}
+
+i2m_err_t i2m_refine_spread(i2m_refine_t *r)
+{
+  i2m_refine_worker_t *w0 = &r->workers[0];
+  size_t n = 0;
+  for (int l = 0; l < NLEVELS; l++) n += w0->q[l].n;
+  if (r->nworkers < 2 || n == 0) return I2M_OK;
+  int ax = 0; /* slabs across the longest axis of the image */
+  double lo[3], hi[3];
+  i2m_image_world_bounds(r->img, lo, hi);
+  for (int a = 1; a < 3; a++)
+    if (hi[a] - lo[a] > hi[ax] - lo[ax]) ax = a;
+  spread_t *all = NULL;
+  I2M_CALL(i2m_malloc(n, sizeof *all, &all));
+  size_t m = 0;
+  for (int l = 0; l < NLEVELS; l++) {
+    for (size_t i = 0; i < w0->q[l].n; i++) {
+      const bad_t *b = &w0->q[l].e[i];
+      all[m].key = i2m_dt_xyz(r->dt, b->v[0])[ax];
+      all[m].level = l;
+      all[m++].b = *b;
+    }
+    w0->q[l].n = 0;
+  }
+  qsort(all, m, sizeof *all, cmp_spread);
+  i2m_err_t err = I2M_OK;
+  for (size_t i = 0; i < m && err == I2M_OK; i++)
+    err = worker_push_entry(&r->workers[(size_t)r->nworkers * i / m], all[i].level, &all[i].b);
+  i2m_free(&all);
+  return err;
+}
+
+i2m_err_t i2m_refine_grow(i2m_refine_t *r)
+{
+  i2m_dt_t *dt = r->dt;
+  uint64_t nv = (uint64_t)dt->cap_v + dt->cap_v / 2 + 1024, nt = (uint64_t)dt->cap_t + dt->cap_t / 2 + 8192;
+  if (nt > (UINT32_MAX >> 2) - 1) nt = (UINT32_MAX >> 2) - 1;
+  if (nv > UINT32_MAX - 2) nv = UINT32_MAX - 2;
+  I2M_CHECK(nt > dt->cap_t, I2M_ERR_MEMORY, "a process can hold at most 2^30 tetrahedra; use more MPI ranks");
+  I2M_CALL(i2m_dt_reserve(dt, (uint32_t)nv, (uint32_t)nt));
+  I2M_CALL(vgrid_reserve(&r->surf, dt->cap_v));
+  I2M_CALL(vgrid_reserve(&r->freev, dt->cap_v));
+  return I2M_OK;
+}
+
+void i2m_refine_set_size_scale(i2m_refine_t *r, double f) { r->size_scale = f; }
+
+i2m_err_t i2m_refine_reclassify(i2m_refine_t *r, int k, int n)
+{
+  i2m_refine_worker_t *w = &r->workers[k];
+  uint32_t nt = i2m_dt_ntets_slots(r->dt);
+  for (uint32_t t = (uint32_t)k; t < nt; t += (uint32_t)n)
+    if (i2m_dt_alive(r->dt, t)) I2M_CALL(worker_push(w, t));
+  return I2M_OK;
+}
+
+void i2m_refine_worker_stats(const i2m_refine_t *r, int k, i2m_refine_stats_t *s)
+{
+  *s = r->workers[k].st;
+  s->rollbacks = r->workers[k].st.rollbacks;
+}
+
+void i2m_refine_sync(i2m_refine_t *r)
+{
+  for (int k = 0; k < r->nworkers; k++) i2m_dt_ctx_flush(&r->workers[k].ctx);
 }

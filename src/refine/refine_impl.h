@@ -21,9 +21,11 @@ typedef struct {
 
 static inline tet_info_t *tinfo(const i2m_dt_t *dt, uint32_t t) { return (tet_info_t *)i2m_dt_payload(dt, t); }
 
-/** A bad element: a tet and its meta when recorded (stale once the tet changes). */
+/** A bad element: a tet, its meta when recorded (stale once the tet changes) and its
+ *  vertices, which a thread locks before it reads anything of the tet. */
 typedef struct {
   uint32_t t, meta;
+  uint32_t v[4];
 } bad_t;
 
 typedef struct {
@@ -48,25 +50,35 @@ typedef struct {
 static inline uint32_t patch_key(int a, int b) { return a < b ? ((uint32_t)a << 16 | (uint32_t)b) : ((uint32_t)b << 16 | (uint32_t)a); }
 
 /** A spatial hash of vertices: cells of side h, each a list through next[]; a tag per
- *  vertex.  Used for the surface vertices (tag: the interface patch) and for the free
- *  vertices close to an interface (R7's candidates). */
+ *  vertex.  Used for the surface vertices (tag: the interface patch; append-only, lock-free:
+ *  a vertex is published by a compare-and-swap on its cell's head after its next and tag
+ *  are written) and for the free vertices close to an interface (R7's candidates; inserts
+ *  and removals take a striped spinlock when several threads run). */
+#define VGRID_STRIPES 4096
 typedef struct {
-  double h, inv_h;    /* cell side and its inverse */
-  double origin[3];   /* corner of cell (0,0,0) */
-  uint32_t nc[3];     /* cells along each axis (points outside are clamped into the border) */
+  double h, inv_h;          /* cell side and its inverse */
+  double origin[3];         /* corner of cell (0,0,0) */
+  uint32_t nc[3];           /* cells along each axis (points outside are clamped into the border) */
   uint32_t ncells;
-  uint32_t *head;     /* owned: [ncells] first vertex of each cell */
-  uint32_t *next;     /* owned: [cap_next] next vertex in the same cell */
-  uint32_t *tag;      /* owned: [cap_next] the vertex's tag */
+  _Atomic uint32_t *head;   /* owned: [ncells] first vertex of each cell */
+  _Atomic uint32_t *next;   /* owned: [cap_next] next vertex in the same cell */
+  uint32_t *tag;            /* owned: [cap_next] the vertex's tag */
   uint32_t cap_next;
+  _Atomic uint32_t *stripe; /* owned: [VGRID_STRIPES] spinlocks (NULL: sequential or lock-free) */
 } vgrid_t;
+
+/** A free vertex R7 wants removed; the global id tells a recycled slot apart. */
+typedef struct {
+  uint32_t v;
+  i2m_gidx_t gid;
+} pending_t;
 
 struct i2m_refine_worker {
   i2m_refine_t *r;      /* borrowed */
   i2m_dt_ctx_t ctx;     /* kernel context */
   badlist_t q[NLEVELS]; /* this worker's bad elements */
-  uint32_t *near;       /* R7: free vertices near a new surface vertex */
-  uint32_t nnear, cap_near;
+  pending_t *pend;      /* R7 removals still to do */
+  uint32_t npend, cap_pend;
   uint32_t *created;    /* tets created by one operation (copied from ctx->newt) */
   uint32_t ncreated, cap_created;
   i2m_refine_stats_t st;
@@ -82,6 +94,7 @@ struct i2m_refine {
   double sin2_facet;      /* sin^2 of the facet angle bound */
   double bisect_tol;      /* bisection tolerance (mm) */
   double min_spacing;
+  double size_scale;      /* multiplies every size bound (coarse phase: > 1) */
   double *label_size;     /* owned: [nlabels] size bound per label index (INFINITY: none) */
   i2m_dt_t *dt;           /* owned */
   vgrid_t surf;           /* surface vertices, tagged with their patch (R1) */
@@ -94,27 +107,34 @@ struct i2m_refine {
 /* classify.c */
 void tet_info_compute(const i2m_refine_t *r, uint32_t t);
 int classify_level(i2m_refine_worker_t *w, uint32_t t);
-int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a);
+/** The action for tet t (its vertices locked), skipping the rules whose bit (1 << rule) is
+ *  set in skip (their point could not go in); 0 when nothing is to be done. */
+int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t skip);
 
 /* vgrid.c */
 /** A grid of cells of side about h over the box [lo, hi] (grown by one cell). */
 i2m_err_t vgrid_init(vgrid_t *g, const double lo[3], const double hi[3], double h);
+/** From now on inserts, removals and scans take a per-cell spinlock (several threads use a
+ *  grid with removals). */
+i2m_err_t vgrid_enable_locks(vgrid_t *g);
 void vgrid_free(vgrid_t *g);
+/** Room for vertex ids below cap (call while no other thread uses the grid). */
+i2m_err_t vgrid_reserve(vgrid_t *g, uint32_t cap);
 i2m_err_t vgrid_insert(vgrid_t *g, const i2m_dt_t *dt, uint32_t v, uint32_t tag);
 void vgrid_remove(vgrid_t *g, const i2m_dt_t *dt, uint32_t v);
 /** Is there a vertex with this tag closer than rad to z? */
 bool vgrid_has_within(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], double rad, uint32_t tag);
-/** The vertices closer than rad to z into (*out)[0..*n). */
-i2m_err_t vgrid_collect_within(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], double rad, uint32_t **out,
-                               uint32_t *n, uint32_t *cap);
+/** Appends the vertices closer than rad to z, with their global ids, to (*out)[*n ...]. */
+i2m_err_t vgrid_collect_within(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], double rad,
+                               pending_t **out, uint32_t *n, uint32_t *cap);
 
 /* worker.c */
 i2m_err_t worker_init(i2m_refine_worker_t *w, i2m_refine_t *r, uint32_t owner, bool locking);
 void worker_free(i2m_refine_worker_t *w);
 i2m_err_t worker_push(i2m_refine_worker_t *w, uint32_t t);
+i2m_err_t worker_push_entry(i2m_refine_worker_t *w, int level, const bad_t *b);
 i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, uint32_t n);
-/** Pops and treats one bad element.  Returns 1 when something was done or skipped, 0 when
- *  the worker's lists are empty, <0 on error. */
+/** Treats one pending removal or one bad element: an I2M_STEP_* result. */
 int worker_step(i2m_refine_worker_t *w);
 
 #endif

@@ -1,9 +1,11 @@
 /* Refine layer: a spatial hash of vertices (cells of side h, each a linked list through
  * next[]), with a tag per vertex.  Two are used: the surface vertices tagged with the
- * interface patch they sample (R1's spacing test) and the free vertices close to an
- * interface (the candidates of R7's removals). */
+ * interface patch they sample (R1's spacing test; append-only and lock-free) and the free
+ * vertices close to an interface (the candidates of R7's removals; striped spinlocks). */
 #include "refine_impl.h"
 
+#include <sched.h>
+#include <stdlib.h>
 #include <string.h>
 
 #define VGRID_MAX_CELLS (1u << 23)
@@ -17,6 +19,30 @@ static uint32_t cell_axis(const vgrid_t *g, int a, double x)
 static uint32_t cell_of(const vgrid_t *g, const double p[3])
 {
   return (cell_axis(g, 2, p[2]) * g->nc[1] + cell_axis(g, 1, p[1])) * g->nc[0] + cell_axis(g, 0, p[0]);
+}
+
+static void stripe_lock(const vgrid_t *g, uint32_t cell)
+{
+  if (!g->stripe) return;
+  _Atomic uint32_t *L = &g->stripe[cell % VGRID_STRIPES];
+  for (;;) {
+    uint32_t expected = 0;
+    if (atomic_compare_exchange_weak_explicit(L, &expected, 1, memory_order_acquire, memory_order_relaxed)) return;
+    while (atomic_load_explicit(L, memory_order_relaxed)) sched_yield();
+  }
+}
+
+static void stripe_unlock(const vgrid_t *g, uint32_t cell)
+{
+  if (g->stripe) atomic_store_explicit(&g->stripe[cell % VGRID_STRIPES], 0, memory_order_release);
+}
+
+i2m_err_t vgrid_enable_locks(vgrid_t *g)
+{
+  if (g->stripe) return I2M_OK;
+  I2M_CALL(i2m_malloc(VGRID_STRIPES, sizeof *g->stripe, &g->stripe));
+  for (uint32_t k = 0; k < VGRID_STRIPES; k++) atomic_init(&g->stripe[k], 0);
+  return I2M_OK;
 }
 
 i2m_err_t vgrid_init(vgrid_t *g, const double lo[3], const double hi[3], double h)
@@ -39,41 +65,54 @@ i2m_err_t vgrid_init(vgrid_t *g, const double lo[3], const double hi[3], double 
     h *= 1.26;
   }
   I2M_CALL(i2m_malloc(g->ncells, sizeof *g->head, &g->head));
-  for (uint32_t c = 0; c < g->ncells; c++) g->head[c] = I2M_DT_NONE;
+  for (uint32_t c = 0; c < g->ncells; c++) atomic_init(&g->head[c], I2M_DT_NONE);
   return I2M_OK;
 }
 
 void vgrid_free(vgrid_t *g)
 {
-  i2m_free(&g->head);
-  i2m_free(&g->next);
+  free((void *)g->head);
+  free((void *)g->next);
+  free((void *)g->stripe);
   i2m_free(&g->tag);
   memset(g, 0, sizeof *g);
 }
 
+i2m_err_t vgrid_reserve(vgrid_t *g, uint32_t cap)
+{
+  if (cap <= g->cap_next) return I2M_OK;
+  I2M_CALL(i2m_realloc(cap, sizeof *g->next, &g->next));
+  I2M_CALL(i2m_realloc(cap, sizeof *g->tag, &g->tag));
+  for (uint32_t v = g->cap_next; v < cap; v++) atomic_init(&g->next[v], I2M_DT_NONE);
+  g->cap_next = cap;
+  return I2M_OK;
+}
+
 i2m_err_t vgrid_insert(vgrid_t *g, const i2m_dt_t *dt, uint32_t v, uint32_t tag)
 {
-  if (v >= g->cap_next) {
-    uint32_t cap = dt->cap_v > v ? dt->cap_v : v + 1;
-    I2M_CALL(i2m_realloc(cap, sizeof *g->next, &g->next));
-    I2M_CALL(i2m_realloc(cap, sizeof *g->tag, &g->tag));
-    g->cap_next = cap;
-  }
+  if (v >= g->cap_next) I2M_CALL(vgrid_reserve(g, dt->cap_v > v ? dt->cap_v : v + 1)); /* sequential only */
   uint32_t c = cell_of(g, i2m_dt_xyz(dt, v));
   g->tag[v] = tag;
-  g->next[v] = g->head[c];
-  g->head[c] = v;
+  stripe_lock(g, c);
+  uint32_t head = atomic_load_explicit(&g->head[c], memory_order_relaxed);
+  do {
+    atomic_store_explicit(&g->next[v], head, memory_order_relaxed);
+  } while (!atomic_compare_exchange_weak_explicit(&g->head[c], &head, v, memory_order_release, memory_order_relaxed));
+  stripe_unlock(g, c);
   return I2M_OK;
 }
 
 void vgrid_remove(vgrid_t *g, const i2m_dt_t *dt, uint32_t v)
 {
   uint32_t c = cell_of(g, i2m_dt_xyz(dt, v));
-  for (uint32_t *link = &g->head[c]; *link != I2M_DT_NONE; link = &g->next[*link])
-    if (*link == v) {
-      *link = g->next[v];
-      return;
+  stripe_lock(g, c);
+  _Atomic uint32_t *link = &g->head[c];
+  for (uint32_t u; (u = atomic_load_explicit(link, memory_order_relaxed)) != I2M_DT_NONE; link = &g->next[u])
+    if (u == v) {
+      atomic_store_explicit(link, atomic_load_explicit(&g->next[v], memory_order_relaxed), memory_order_relaxed);
+      break;
     }
+  stripe_unlock(g, c);
 }
 
 /* Calls fn(arg, v) for every vertex of the cells that meet the box [z - rad, z + rad] whose
@@ -89,9 +128,16 @@ static bool vgrid_scan(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], 
   double r2 = rad * rad;
   for (uint32_t k = c0[2]; k <= c1[2]; k++)
     for (uint32_t j = c0[1]; j <= c1[1]; j++)
-      for (uint32_t i = c0[0]; i <= c1[0]; i++)
-        for (uint32_t v = g->head[(k * g->nc[1] + j) * g->nc[0] + i]; v != I2M_DT_NONE; v = g->next[v])
-          if (i2m_dist2(i2m_dt_xyz(dt, v), z) < r2 && fn(arg, v)) return true;
+      for (uint32_t i = c0[0]; i <= c1[0]; i++) {
+        uint32_t c = (k * g->nc[1] + j) * g->nc[0] + i;
+        bool stop = false;
+        stripe_lock(g, c);
+        for (uint32_t v = atomic_load_explicit(&g->head[c], memory_order_acquire); v != I2M_DT_NONE && !stop;
+             v = atomic_load_explicit(&g->next[v], memory_order_relaxed))
+          stop = i2m_dist2(i2m_dt_xyz(dt, v), z) < r2 && fn(arg, v);
+        stripe_unlock(g, c);
+        if (stop) return true;
+      }
   return false;
 }
 
@@ -113,7 +159,9 @@ bool vgrid_has_within(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], d
 }
 
 typedef struct {
-  uint32_t **out, *n, *cap;
+  const i2m_dt_t *dt;
+  pending_t **out;
+  uint32_t *n, *cap;
   bool failed;
 } collect_t;
 
@@ -128,15 +176,16 @@ static bool collect_one(void *arg, uint32_t v)
     }
     *c->cap = cap;
   }
-  (*c->out)[(*c->n)++] = v;
+  (*c->out)[*c->n].v = v;
+  (*c->out)[*c->n].gid = i2m_dt_gid(c->dt, v); /* read under the cell's lock: v is not recycled */
+  (*c->n)++;
   return false;
 }
 
-i2m_err_t vgrid_collect_within(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], double rad, uint32_t **out,
-                               uint32_t *n, uint32_t *cap)
+i2m_err_t vgrid_collect_within(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], double rad,
+                               pending_t **out, uint32_t *n, uint32_t *cap)
 {
-  collect_t c = {out, n, cap, false};
-  *n = 0;
+  collect_t c = {dt, out, n, cap, false};
   vgrid_scan(g, dt, z, rad, collect_one, &c);
   I2M_CHECK(!c.failed, I2M_ERR_MEMORY, "out of memory collecting vertices near a surface point");
   return I2M_OK;

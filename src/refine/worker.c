@@ -1,5 +1,9 @@
 /* Refine layer: a worker pops bad elements from its own lists, inserts the point the rules
- * ask for, classifies the tets it created, and applies R7 after every surface vertex. */
+ * ask for, classifies the tets it created, and queues the removals R7 asks for after every
+ * surface vertex.  The same code runs alone (no locks) or on many threads: then every
+ * operation first locks the vertices of the bad tet recorded in its list entry, checks the
+ * tet is unchanged, and only then reads it; a lock held by another thread rolls everything
+ * back (nothing was written) and the element goes back to the list (REFERENCE §2.2). */
 #include "refine_impl.h"
 
 #include <stdlib.h>
@@ -18,12 +22,12 @@ void worker_free(i2m_refine_worker_t *w)
 {
   i2m_dt_ctx_free(&w->ctx);
   for (int l = 0; l < NLEVELS; l++) i2m_free(&w->q[l].e);
-  i2m_free(&w->near);
+  i2m_free(&w->pend);
   i2m_free(&w->created);
   memset(w, 0, sizeof *w);
 }
 
-static i2m_err_t push_level(i2m_refine_worker_t *w, int level, uint32_t t)
+i2m_err_t worker_push_entry(i2m_refine_worker_t *w, int level, const bad_t *b)
 {
   badlist_t *q = &w->q[level];
   if (q->n == q->cap) {
@@ -31,16 +35,20 @@ static i2m_err_t push_level(i2m_refine_worker_t *w, int level, uint32_t t)
     I2M_CALL(i2m_realloc(cap, sizeof *q->e, &q->e));
     q->cap = cap;
   }
-  q->e[q->n].t = t;
-  q->e[q->n].meta = i2m_dt_meta(w->r->dt, t);
-  q->n++;
+  q->e[q->n++] = *b;
   return I2M_OK;
 }
 
+/* Classifies tet t (its vertices locked, or a sequential run) and queues it if it is bad. */
 i2m_err_t worker_push(i2m_refine_worker_t *w, uint32_t t)
 {
   int level = classify_level(w, t);
-  return level < 0 ? I2M_OK : push_level(w, level, t);
+  if (level < 0) return I2M_OK;
+  bad_t b;
+  b.t = t;
+  b.meta = i2m_dt_meta(w->r->dt, t);
+  memcpy(b.v, w->r->dt->tv + 4 * (size_t)t, sizeof b.v);
+  return worker_push_entry(w, level, &b);
 }
 
 i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, uint32_t n)
@@ -51,58 +59,91 @@ i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, u
   return I2M_OK;
 }
 
-static i2m_err_t grow_u32(uint32_t **a, uint32_t *cap, uint32_t need)
-{
-  if (need <= *cap) return I2M_OK;
-  uint32_t c = need + need / 2 + 64;
-  I2M_CALL(i2m_realloc(c, sizeof **a, a));
-  *cap = c;
-  return I2M_OK;
-}
-
-static int cmp_u32(const void *a, const void *b)
-{
-  uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-  return (x > y) - (x < y);
-}
-
-static i2m_err_t apply_r7(i2m_refine_worker_t *w, uint32_t zv)
-{
-  i2m_dt_t *dt = w->r->dt;
-  I2M_CALL(vgrid_collect_within(&w->r->freev, dt, i2m_dt_xyz(dt, zv), 2.0 * w->r->p.delta, &w->near, &w->nnear,
-                                &w->cap_near));
-  if (w->nnear > 1) qsort(w->near, w->nnear, sizeof *w->near, cmp_u32);
-  uint32_t prev = I2M_DT_NONE;
-  for (uint32_t k = 0; k < w->nnear; k++) {
-    uint32_t v = w->near[k];
-    if (v == prev) continue;
-    prev = v;
-    vgrid_remove(&w->r->freev, dt, v);
-    i2m_dt_status_t st = i2m_dt_remove(&w->ctx, v);
-    if (st != I2M_DT_OK) {
-      I2M_CHECK(st != I2M_DT_FAILED, I2M_ERR_INTERNAL, "vertex removal failed to re-triangulate a star");
-      I2M_CALL(vgrid_insert(&w->r->freev, dt, v, 0)); /* still there: still a candidate */
-      w->st.failed++;
-      continue;
-    }
-    w->st.removals++;
-    w->st.rule[7]++;
-    I2M_CALL(worker_process_created(w, w->ctx.newt, w->ctx.nnew));
-    i2m_dt_unlock_all(&w->ctx);
-  }
-  return I2M_OK;
-}
-
 static i2m_err_t keep_created(i2m_refine_worker_t *w)
 {
-  I2M_CALL(grow_u32(&w->created, &w->cap_created, w->ctx.nnew + 1));
-  memcpy(w->created, w->ctx.newt, w->ctx.nnew * sizeof *w->created);
-  w->ncreated = w->ctx.nnew;
+  uint32_t n = w->ctx.nnew;
+  if (n + 1 > w->cap_created) {
+    uint32_t cap = n + n / 2 + 64;
+    I2M_CALL(i2m_realloc(cap, sizeof *w->created, &w->created));
+    w->cap_created = cap;
+  }
+  memcpy(w->created, w->ctx.newt, n * sizeof *w->created);
+  w->ncreated = n;
   return I2M_OK;
 }
 
-/* Inserts the action's point; for a surface point whose seed's ball holds it only on its
- * boundary, locates it by a walk.  Returns the kernel status. */
+static int64_t live_tets(const i2m_refine_worker_t *w) { return w->ctx.n_created - w->ctx.n_killed; }
+
+/* Puts an element back at the bottom of its list: after a rollback the thread first works
+ * elsewhere, away from the thread that holds the lock. */
+static void requeue_bottom(badlist_t *q, const bad_t *b)
+{
+  q->e[q->n] = q->e[0]; /* the slot it was popped from is still allocated */
+  q->e[0] = *b;
+  q->n++;
+}
+
+static void pend_bottom(i2m_refine_worker_t *w, pending_t pv)
+{
+  w->pend[w->npend] = w->pend[0];
+  w->pend[0] = pv;
+  w->npend++;
+}
+
+/* Maps a failed kernel status to a step result (the element has been put back). */
+static int retry_later(i2m_refine_worker_t *w, i2m_dt_status_t st)
+{
+  i2m_dt_unlock_all(&w->ctx);
+  if (st == I2M_DT_FULL) return I2M_STEP_FULL;
+  w->st.rollbacks++;
+  return I2M_STEP_ROLLBACK;
+}
+
+/* One R7 removal: lock the vertex, check it is still the free vertex that was queued (a
+ * removed vertex's slot may hold another vertex by now), remove it, classify its new tets. */
+static int do_removal(i2m_refine_worker_t *w, pending_t pv)
+{
+  i2m_dt_t *dt = w->r->dt;
+  uint32_t v4[4] = {pv.v, pv.v, pv.v, pv.v};
+  if (!i2m_dt_lock_tet(&w->ctx, v4)) {
+    pend_bottom(w, pv);
+    return retry_later(w, I2M_DT_ROLLBACK);
+  }
+  if (dt->vkind[pv.v] != I2M_VK_FREE || i2m_dt_gid(dt, pv.v) != pv.gid) {
+    i2m_dt_unlock_all(&w->ctx);
+    return I2M_STEP_DONE;
+  }
+  i2m_dt_status_t st = i2m_dt_remove(&w->ctx, pv.v);
+  if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) {
+    pend_bottom(w, pv);
+    return retry_later(w, st);
+  }
+  if (st != I2M_DT_OK) {
+    i2m_dt_unlock_all(&w->ctx);
+    if (st == I2M_DT_FAILED) {
+      I2M_ERROR(I2M_ERR_INTERNAL, "vertex removal failed to re-triangulate a star");
+      return I2M_STEP_ERROR;
+    }
+    w->st.failed++;
+    return I2M_STEP_DONE;
+  }
+  vgrid_remove(&w->r->freev, dt, pv.v); /* the slot is ours until our next insertion */
+  w->st.removals++;
+  w->st.rule[7]++;
+  i2m_err_t err = keep_created(w);
+  if (err == I2M_OK) err = worker_process_created(w, w->created, w->ncreated);
+  i2m_dt_unlock_all(&w->ctx);
+  return err == I2M_OK ? I2M_STEP_DONE : I2M_STEP_ERROR;
+}
+
+/* R7: queue the free vertices within 2 delta of the new surface vertex z. */
+static i2m_err_t queue_r7(i2m_refine_worker_t *w, const double z[3])
+{
+  return vgrid_collect_within(&w->r->freev, w->r->dt, z, 2.0 * w->r->p.delta, &w->pend, &w->npend, &w->cap_pend);
+}
+
+/* Inserts the action's point; in a sequential run, a surface point whose seed's ball holds it
+ * only on its boundary is located by a walk. */
 static i2m_dt_status_t insert_action(i2m_refine_worker_t *w, const action_t *a, uint32_t *v)
 {
   i2m_refine_t *r = w->r;
@@ -115,37 +156,73 @@ static i2m_dt_status_t insert_action(i2m_refine_worker_t *w, const action_t *a, 
   return st;
 }
 
-static int64_t live_tets(const i2m_refine_worker_t *w) { return 6 + w->ctx.n_created - w->ctx.n_killed; }
+/* After a successful insertion (locks held): the grids, the new tets, the popped tet if it
+ * survived, R7's candidates. */
+static i2m_err_t after_insertion(i2m_refine_worker_t *w, const action_t *a, const bad_t *b, uint32_t v)
+{
+  i2m_refine_t *r = w->r;
+  i2m_dt_t *dt = r->dt;
+  w->st.insertions++;
+  w->st.rule[a->rule]++;
+  /* the new vertex joins its grid before its tets are judged (R1 looks at it) */
+  if (a->kind == I2M_VK_SURFACE) I2M_CALL(vgrid_insert(&r->surf, dt, v, a->patch));
+  if (a->kind == I2M_VK_FREE && a->dist2 <= r->four_delta2) I2M_CALL(vgrid_insert(&r->freev, dt, v, 0));
+  I2M_CALL(keep_created(w));
+  I2M_CALL(worker_process_created(w, w->created, w->ncreated));
+  /* the point may have gone in elsewhere (a neighbour's ball, a walk): a tet that survives
+   * keeps whatever else is wrong with it, so it goes back to the lists */
+  if (i2m_dt_meta(dt, b->t) == b->meta) I2M_CALL(worker_push(w, b->t));
+  if (a->kind == I2M_VK_SURFACE) I2M_CALL(queue_r7(w, i2m_dt_xyz(dt, v)));
+  return I2M_OK;
+}
 
 int worker_step(i2m_refine_worker_t *w)
 {
   i2m_dt_t *dt = w->r->dt;
+  if (w->npend) return do_removal(w, w->pend[--w->npend]);
   int level = 0;
   while (level < NLEVELS && w->q[level].n == 0) level++;
-  if (level == NLEVELS) return 0;
+  if (level == NLEVELS) return I2M_STEP_IDLE;
   bad_t b = w->q[level].e[--w->q[level].n];
-  if (i2m_dt_meta(dt, b.t) != b.meta) return 1; /* stale: the tet is gone */
+  if (!i2m_dt_lock_tet(&w->ctx, b.v)) {
+    requeue_bottom(&w->q[level], &b);
+    return retry_later(w, I2M_DT_ROLLBACK);
+  }
+  if (i2m_dt_meta(dt, b.t) != b.meta) { /* stale: the tet is gone */
+    i2m_dt_unlock_all(&w->ctx);
+    return I2M_STEP_DONE;
+  }
+  /* the first rule that applies; if its point cannot go in (it coincides with a vertex, or
+   * lies only on the seed's sphere), the tet is judged again without that rule */
   action_t a;
-  if (!classify_action(w, b.t, &a)) return 1;
-  uint32_t v;
-  i2m_dt_status_t st = insert_action(w, &a, &v);
-  if (st != I2M_DT_OK) {
+  uint32_t v, skip = 0;
+  for (;;) {
+    if (!classify_action(w, b.t, &a, skip)) {
+      i2m_dt_unlock_all(&w->ctx);
+      return I2M_STEP_DONE;
+    }
+    i2m_dt_status_t st = insert_action(w, &a, &v);
+    if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) {
+      requeue_bottom(&w->q[level], &b);
+      return retry_later(w, st);
+    }
+    if (st == I2M_DT_OK) break;
     if (st == I2M_DT_DUPLICATE) w->st.duplicates++;
     else w->st.failed++;
-    return 1;
+    skip |= a.rule >= 2 && a.rule <= 4 ? (1u << 2 | 1u << 3 | 1u << 4) : 1u << a.rule;
+    /* the failed attempt released every lock: take the tet's again */
+    if (!i2m_dt_lock_tet(&w->ctx, b.v)) {
+      requeue_bottom(&w->q[level], &b);
+      return retry_later(w, I2M_DT_ROLLBACK);
+    }
+    if (i2m_dt_meta(dt, b.t) != b.meta) {
+      i2m_dt_unlock_all(&w->ctx);
+      return I2M_STEP_DONE;
+    }
   }
-  w->st.insertions++;
-  w->st.rule[a.rule]++;
-  /* the new vertex joins its grid before its tets are judged (R1 looks at it) */
-  if (a.kind == I2M_VK_SURFACE && vgrid_insert(&w->r->surf, dt, v, a.patch) != I2M_OK) return -1;
-  if (a.kind == I2M_VK_FREE && a.dist2 <= w->r->four_delta2 && vgrid_insert(&w->r->freev, dt, v, 0) != I2M_OK)
-    return -1; /* a free vertex a future surface vertex may have to remove */
-  if (keep_created(w) != I2M_OK || worker_process_created(w, w->created, w->ncreated) != I2M_OK) return -1;
+  i2m_err_t err = after_insertion(w, &a, &b, v);
   i2m_dt_unlock_all(&w->ctx);
-  if (a.kind == I2M_VK_SURFACE && apply_r7(w, v) != I2M_OK) return -1;
-  /* the point may have gone in elsewhere (a neighbour's ball, a walk): a tet that survives
-   * keeps whatever else is wrong with it, so it goes back to the lists */
-  if (i2m_dt_meta(dt, b.t) == b.meta && worker_push(w, b.t) != I2M_OK) return -1;
-  if ((w->st.insertions & 1023) == 0) i2m_progress_update(&w->progress, live_tets(w));
-  return 1;
+  if (err != I2M_OK) return I2M_STEP_ERROR;
+  if ((w->st.insertions & 1023) == 0 && w->ctx.owner == 1) i2m_progress_update(&w->progress, live_tets(w) * w->r->nworkers);
+  return I2M_STEP_DONE;
 }

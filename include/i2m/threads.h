@@ -1,0 +1,46 @@
+/* i2m threads layer (layer 5): shared-memory parallel refinement (ARCHITECTURE §5): OpenMP
+ * worker threads on one triangulation, PODM-style speculative insertion and removal with
+ * vertex locks and rollbacks, a priority contention manager, a begging list for load
+ * balancing, pauses to grow capacity, a coarse phase, threads pinned to cores with hwloc. */
+#ifndef I2M_THREADS_H
+#define I2M_THREADS_H
+
+#include "i2m/refine.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+  int threads;          /**< worker threads (0: the cores the process may use) */
+  double coarse_factor; /**< the coarse phase uses size bounds x this factor (1: no coarse phase) */
+  bool pin;             /**< bind thread k to the k-th core the process may use */
+} i2m_threads_opts_t;
+
+/** What one thread did. */
+typedef struct {
+  int64_t insertions, removals, rollbacks, waits, handoffs, given;
+  double busy_seconds, idle_seconds, wait_seconds;
+  int core; /**< the core it was bound to, -1 if not bound */
+} i2m_thread_figures_t;
+
+typedef struct {
+  int threads;
+  int pinned;                    /**< 1 if every thread was bound to its own core */
+  char binding[160];             /**< how threads were placed */
+  double coarse_seconds, fine_seconds;
+  int64_t pauses;                /**< capacity growths with every thread paused */
+  i2m_thread_figures_t *thread;  /**< owned: [threads]; free with i2m_threads_report_free */
+} i2m_threads_report_t;
+
+/** The cores the process may use (hwloc; 1 if unknown). */
+int i2m_threads_available(void);
+
+/** Refines to completion on o->threads threads (all rules, both phases).  Not collective. */
+i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep);
+void i2m_threads_report_free(i2m_threads_report_t *rep);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

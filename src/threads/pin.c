@@ -1,0 +1,71 @@
+/* Threads layer: the cores a process may use and binding threads to them (hwloc). */
+#include <hwloc.h>
+#include <stdio.h>
+
+#include "threads_impl.h"
+
+struct i2m_pinning {
+  hwloc_topology_t topo;
+  hwloc_bitmap_t allowed;
+  int ncores;
+};
+
+static int count_cores(hwloc_topology_t topo, hwloc_bitmap_t allowed)
+{
+  int n = hwloc_get_nbobjs_inside_cpuset_by_type(topo, allowed, HWLOC_OBJ_CORE);
+  if (n <= 0) n = hwloc_get_nbobjs_inside_cpuset_by_type(topo, allowed, HWLOC_OBJ_PU);
+  return n;
+}
+
+i2m_pinning_t *pinning_open(void)
+{
+  i2m_pinning_t *p = NULL;
+  if (i2m_calloc(1, sizeof *p, &p) != I2M_OK) return NULL;
+  if (hwloc_topology_init(&p->topo) != 0) {
+    i2m_free(&p);
+    return NULL;
+  }
+  if (hwloc_topology_load(p->topo) != 0) {
+    hwloc_topology_destroy(p->topo);
+    i2m_free(&p);
+    return NULL;
+  }
+  p->allowed = hwloc_bitmap_alloc();
+  if (hwloc_get_cpubind(p->topo, p->allowed, HWLOC_CPUBIND_PROCESS) != 0)
+    hwloc_bitmap_copy(p->allowed, hwloc_topology_get_allowed_cpuset(p->topo));
+  p->ncores = count_cores(p->topo, p->allowed);
+  if (p->ncores <= 0) p->ncores = 1;
+  return p;
+}
+
+void pinning_close(i2m_pinning_t *p)
+{
+  if (!p) return;
+  hwloc_bitmap_free(p->allowed);
+  hwloc_topology_destroy(p->topo);
+  i2m_free(&p);
+}
+
+int pinning_cores(const i2m_pinning_t *p) { return p ? p->ncores : 1; }
+
+int pinning_bind_thread(i2m_pinning_t *p, int k)
+{
+  if (!p) return -1;
+  int core = k % p->ncores;
+  hwloc_obj_t obj = hwloc_get_obj_inside_cpuset_by_type(p->topo, p->allowed, HWLOC_OBJ_CORE, (unsigned)core);
+  if (!obj) obj = hwloc_get_obj_inside_cpuset_by_type(p->topo, p->allowed, HWLOC_OBJ_PU, (unsigned)core);
+  if (!obj) return -1;
+  hwloc_bitmap_t set = hwloc_bitmap_dup(obj->cpuset);
+  hwloc_bitmap_singlify(set); /* one PU of the core: no migration between hyperthreads */
+  int ok = hwloc_set_cpubind(p->topo, set, HWLOC_CPUBIND_THREAD) == 0;
+  hwloc_bitmap_free(set);
+  return ok ? core : -1;
+}
+
+int i2m_threads_available(void)
+{
+  i2m_pinning_t *p = pinning_open();
+  int n = pinning_cores(p);
+  pinning_close(p);
+  return n;
+}

@@ -1,0 +1,333 @@
+/* Threads layer: the worker team (ARCHITECTURE §5, REFERENCE §2).
+ *
+ * T OpenMP threads each drive one refine worker on the shared triangulation.  A step that
+ * meets a vertex locked by another thread has changed nothing and returns ROLLBACK; the
+ * contention manager then makes a thread wait for the progress of the holder only when the
+ * holder has the higher index, so waits-for edges always point up: no cycle, no deadlock,
+ * and the highest-index busy thread never waits (no livelock).  Nobody holds a lock while
+ * waiting.  A thread whose lists run dry registers on the begging list and sleeps; a busy
+ * thread that sees a beggar hands it the older half of its backlog, counts it busy again
+ * and wakes it.  When all T threads are counted idle, every list is empty and refinement is
+ * over.  A step that finds the
+ * reserved capacity exhausted asks for a pause: the others stop between steps (holding no
+ * locks) or sleep, one thread grows the arrays, all resume.
+ *
+ * Synchronisation is a pthread mutex and condition variable plus C11 atomics, so that
+ * ThreadSanitizer sees every happens-before edge (the OpenMP runtime's own is invisible to
+ * it); the team's start and end are atomic release/acquire handshakes for the same reason. */
+#include <math.h>
+#include <omp.h>
+#include <pthread.h>
+#include <sched.h>
+#include <stdlib.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "threads_impl.h"
+
+typedef struct {
+  i2m_refine_t *r;
+  int T;
+  pthread_mutex_t mu;
+  pthread_cond_t cv;
+  /* under mu */
+  int idle, arrived, nbeg;
+  int *beggar;      /* [T] stack of sleeping threads that want work */
+  bool *has_work;   /* [T] set by a giver */
+  uint64_t pause_gen;
+  int64_t pauses;
+  i2m_err_t err;
+  char errmsg[512];
+  bool reclassify; /* this phase starts by classifying every tet */
+  /* lock-free */
+  _Atomic int pause_req, done, nbeggars;
+  _Atomic int finished;
+  _Atomic uint64_t *progress; /* [T] steps done: what a waiting thread watches */
+  i2m_thread_figures_t *fig;  /* [T] each thread writes its own */
+  i2m_pinning_t *pin;
+} team_t;
+
+#define WAIT_SPINS 2000
+
+/* The team of the running phase.  Threads fetch it with acquire: the parallel region
+ * captures no variable of the master's stack (OpenMP runtimes hand those over through
+ * synchronisation ThreadSanitizer cannot see).  One team per process at a time. */
+static _Atomic(team_t *) active_team;
+static _Atomic int team_busy;
+
+static void team_fail(team_t *tm, i2m_err_t err)
+{
+  pthread_mutex_lock(&tm->mu);
+  if (tm->err == I2M_OK) {
+    tm->err = err;
+    snprintf(tm->errmsg, sizeof tm->errmsg, "%s", i2m_error_message());
+  }
+  atomic_store_explicit(&tm->done, 1, memory_order_release);
+  pthread_cond_broadcast(&tm->cv);
+  pthread_mutex_unlock(&tm->mu);
+}
+
+/* Waits while another thread grows the arrays (called between steps: no lock held). */
+static void pause_arrive(team_t *tm)
+{
+  pthread_mutex_lock(&tm->mu);
+  if (atomic_load_explicit(&tm->pause_req, memory_order_relaxed)) {
+    uint64_t g = tm->pause_gen;
+    tm->arrived++;
+    pthread_cond_broadcast(&tm->cv);
+    while (tm->pause_gen == g) pthread_cond_wait(&tm->cv, &tm->mu);
+  }
+  pthread_mutex_unlock(&tm->mu);
+}
+
+/* A step found the capacity exhausted: the first such thread grows the arrays once every
+ * other thread has stopped or sleeps; later ones just wait for it. */
+static void pause_request(team_t *tm)
+{
+  pthread_mutex_lock(&tm->mu);
+  if (atomic_load_explicit(&tm->pause_req, memory_order_relaxed)) {
+    pthread_mutex_unlock(&tm->mu);
+    pause_arrive(tm);
+    return;
+  }
+  atomic_store_explicit(&tm->pause_req, 1, memory_order_release);
+  while (tm->arrived + tm->idle < tm->T - 1) pthread_cond_wait(&tm->cv, &tm->mu);
+  i2m_err_t err = i2m_refine_grow(tm->r); /* every other thread is stopped or asleep */
+  tm->pauses++;
+  tm->arrived = 0;
+  tm->pause_gen++;
+  atomic_store_explicit(&tm->pause_req, 0, memory_order_release);
+  pthread_cond_broadcast(&tm->cv);
+  pthread_mutex_unlock(&tm->mu);
+  if (err != I2M_OK) team_fail(tm, err);
+}
+
+/* Lists empty: sleep on the begging list until given work, a pause, or the end. */
+static void go_idle(team_t *tm, int k)
+{
+  double t0 = i2m_wtime();
+  atomic_fetch_add_explicit(&tm->progress[k], 1, memory_order_release); /* waiters: I hold nothing */
+  pthread_mutex_lock(&tm->mu);
+  if (!atomic_load_explicit(&tm->pause_req, memory_order_relaxed)) {
+    tm->idle++;
+    if (tm->idle == tm->T) { /* everybody idle and every list empty: finished */
+      atomic_store_explicit(&tm->done, 1, memory_order_release);
+      pthread_cond_broadcast(&tm->cv);
+    } else {
+      tm->has_work[k] = false;
+      tm->beggar[tm->nbeg++] = k;
+      atomic_store_explicit(&tm->nbeggars, tm->nbeg, memory_order_relaxed);
+      pthread_cond_broadcast(&tm->cv); /* a pausing thread counts sleepers */
+      while (!tm->has_work[k] && !atomic_load_explicit(&tm->done, memory_order_relaxed))
+        pthread_cond_wait(&tm->cv, &tm->mu);
+      if (tm->has_work[k]) { /* the giver already counted us busy again */
+        pthread_mutex_unlock(&tm->mu);
+        tm->fig[k].idle_seconds += i2m_wtime() - t0;
+        return;
+      }
+      for (int i = 0; i < tm->nbeg; i++) /* still listed when woken by the end */
+        if (tm->beggar[i] == k) tm->beggar[i--] = tm->beggar[--tm->nbeg];
+      atomic_store_explicit(&tm->nbeggars, tm->nbeg, memory_order_relaxed);
+    }
+    tm->idle--;
+  }
+  pthread_mutex_unlock(&tm->mu);
+  tm->fig[k].idle_seconds += i2m_wtime() - t0;
+}
+
+/* A busy thread with a backlog gives the older half to the first beggar and wakes it. */
+static void maybe_share(team_t *tm, int k)
+{
+  if (atomic_load_explicit(&tm->nbeggars, memory_order_relaxed) == 0 || i2m_refine_backlog(tm->r, k) < 4) return;
+  pthread_mutex_lock(&tm->mu);
+  if (tm->nbeg > 0 && !atomic_load_explicit(&tm->pause_req, memory_order_relaxed)) {
+    int b = tm->beggar[--tm->nbeg];
+    atomic_store_explicit(&tm->nbeggars, tm->nbeg, memory_order_relaxed);
+    tm->fig[k].given += (int64_t)i2m_refine_give(tm->r, k, b); /* b sleeps: its lists are free */
+    tm->fig[k].handoffs++;
+    tm->has_work[b] = true;
+    tm->idle--; /* b counts as busy from now on: nobody may conclude that all are idle */
+    pthread_cond_broadcast(&tm->cv);
+  }
+  pthread_mutex_unlock(&tm->mu);
+}
+
+/* After a rollback: a thread waits for the holder's progress only if the holder has the
+ * higher index; otherwise it goes on with other elements. */
+static void contention(team_t *tm, int k)
+{
+  int o = i2m_refine_conflict_worker(tm->r, k);
+  if (o <= k) return;
+  double t0 = i2m_wtime();
+  uint64_t p0 = atomic_load_explicit(&tm->progress[o], memory_order_acquire);
+  tm->fig[k].waits++;
+  for (int spin = 0; spin < WAIT_SPINS; spin++) {
+    if (atomic_load_explicit(&tm->progress[o], memory_order_acquire) != p0 ||
+        atomic_load_explicit(&tm->pause_req, memory_order_relaxed) || atomic_load_explicit(&tm->done, memory_order_relaxed))
+      break;
+    sched_yield();
+  }
+  tm->fig[k].wait_seconds += i2m_wtime() - t0;
+}
+
+static void team_loop(team_t *tm, int k)
+{
+  i2m_refine_t *r = tm->r;
+  double t0 = i2m_wtime();
+  for (;;) {
+    if (atomic_load_explicit(&tm->pause_req, memory_order_acquire)) pause_arrive(tm);
+    if (atomic_load_explicit(&tm->done, memory_order_acquire)) break;
+    int s = i2m_refine_step(r, k);
+    if (s == I2M_STEP_DONE) {
+      atomic_fetch_add_explicit(&tm->progress[k], 1, memory_order_release);
+      maybe_share(tm, k);
+    } else if (s == I2M_STEP_ROLLBACK) {
+      contention(tm, k);
+    } else if (s == I2M_STEP_FULL) {
+      pause_request(tm);
+    } else if (s == I2M_STEP_IDLE) {
+      go_idle(tm, k);
+    } else {
+      team_fail(tm, I2M_ERR_INTERNAL);
+      break;
+    }
+  }
+  tm->fig[k].busy_seconds += i2m_wtime() - t0 - tm->fig[k].idle_seconds;
+}
+
+/* The body of every thread of a phase. */
+static void phase_thread(void)
+{
+  team_t *tm = atomic_load_explicit(&active_team, memory_order_acquire); /* sees the master's writes */
+  int k = omp_get_thread_num();
+  if (tm->pin && tm->fig[k].core == -2) tm->fig[k].core = pinning_bind_thread(tm->pin, k);
+  i2m_err_t err = tm->reclassify ? i2m_refine_reclassify(tm->r, k, tm->T) : I2M_OK;
+  if (err != I2M_OK) team_fail(tm, err);
+  /* everybody classified before anybody changes the mesh */
+  atomic_fetch_add_explicit(&tm->finished, 1, memory_order_acq_rel);
+  while (atomic_load_explicit(&tm->finished, memory_order_acquire) < tm->T) sched_yield();
+  team_loop(tm, k);
+  atomic_fetch_add_explicit(&tm->finished, 1, memory_order_release);
+}
+
+/* One parallel phase: every thread runs its loop until all are idle. */
+static i2m_err_t run_phase(team_t *tm, bool reclassify)
+{
+  atomic_store_explicit(&tm->done, 0, memory_order_relaxed);
+  atomic_store_explicit(&tm->finished, 0, memory_order_relaxed);
+  tm->idle = tm->arrived = tm->nbeg = 0;
+  tm->reclassify = reclassify;
+  atomic_store_explicit(&active_team, tm, memory_order_release);
+  I2M_OMP(omp parallel num_threads(tm->T))
+  phase_thread();
+  while (atomic_load_explicit(&tm->finished, memory_order_acquire) < 2 * tm->T) sched_yield();
+  atomic_store_explicit(&active_team, NULL, memory_order_relaxed);
+  i2m_refine_sync(tm->r);
+  if (tm->err != I2M_OK) return i2m_error_set(tm->err, __FILE__, __LINE__, "%s", tm->errmsg);
+  return I2M_OK;
+}
+
+/* Before the team: worker 0 alone until there is enough work to share, then the work is
+ * spread over the workers by position. */
+static i2m_err_t warm_up(i2m_refine_t *r, int T)
+{
+  size_t want = 64 * (size_t)T;
+  int s = I2M_STEP_DONE;
+  while (i2m_refine_backlog(r, 0) < want && (s = i2m_refine_step(r, 0)) == I2M_STEP_DONE) {
+  }
+  if (s == I2M_STEP_FULL) I2M_CALL(i2m_refine_grow(r));
+  I2M_CHECK(s != I2M_STEP_ERROR, I2M_ERR_INTERNAL, "refinement failed: %s", i2m_error_message());
+  return i2m_refine_spread(r);
+}
+
+static bool has_size_bound(const i2m_refine_params_t *p)
+{
+  return isfinite(p->size) || p->nlabel_sizes > 0 || p->nregions > 0;
+}
+
+static i2m_err_t team_init(team_t *tm, i2m_refine_t *r, int T, bool pin)
+{
+  memset(tm, 0, sizeof *tm);
+  tm->r = r;
+  tm->T = T;
+  pthread_mutex_init(&tm->mu, NULL);
+  pthread_cond_init(&tm->cv, NULL);
+  I2M_CALL(i2m_calloc((size_t)T, sizeof *tm->beggar, &tm->beggar));
+  I2M_CALL(i2m_calloc((size_t)T, sizeof *tm->has_work, &tm->has_work));
+  I2M_CALL(i2m_calloc((size_t)T, sizeof *tm->fig, &tm->fig));
+  I2M_CALL(i2m_malloc((size_t)T, sizeof *tm->progress, &tm->progress));
+  for (int k = 0; k < T; k++) {
+    atomic_init(&tm->progress[k], 0);
+    tm->fig[k].core = pin ? -2 : -1; /* -2: to bind at the first phase */
+  }
+  tm->pin = pin ? pinning_open() : NULL;
+  return I2M_OK;
+}
+
+static void team_free(team_t *tm)
+{
+  pinning_close(tm->pin);
+  pthread_mutex_destroy(&tm->mu);
+  pthread_cond_destroy(&tm->cv);
+  i2m_free(&tm->beggar);
+  i2m_free(&tm->has_work);
+  free((void *)tm->progress);
+  i2m_free(&tm->fig);
+}
+
+static void report_fill(team_t *tm, i2m_threads_report_t *rep)
+{
+  rep->threads = tm->T;
+  rep->pauses = tm->pauses;
+  rep->thread = tm->fig;
+  tm->fig = NULL;
+  int bound = 0;
+  for (int k = 0; k < tm->T; k++) {
+    i2m_refine_stats_t s;
+    i2m_refine_worker_stats(tm->r, k, &s);
+    rep->thread[k].insertions = s.insertions;
+    rep->thread[k].removals = s.removals;
+    rep->thread[k].rollbacks = s.rollbacks;
+    bound += rep->thread[k].core >= 0;
+  }
+  rep->pinned = bound == tm->T;
+  if (!tm->pin) snprintf(rep->binding, sizeof rep->binding, "not bound (--no-pin)");
+  else if (rep->pinned)
+    snprintf(rep->binding, sizeof rep->binding, "each thread bound to one of %d cores (hwloc)", pinning_cores(tm->pin));
+  else snprintf(rep->binding, sizeof rep->binding, "binding failed; threads float");
+}
+
+i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep)
+{
+  int T = o->threads > 0 ? o->threads : i2m_threads_available();
+  team_t tm;
+  memset(rep, 0, sizeof *rep);
+  I2M_CHECK(atomic_exchange(&team_busy, 1) == 0, I2M_ERR_UNSUPPORTED,
+            "one parallel refinement at a time per process");
+  i2m_err_t err = i2m_refine_set_workers(r, T);
+  if (err != I2M_OK) {
+    atomic_store(&team_busy, 0);
+    return err;
+  }
+  err = team_init(&tm, r, T, o->pin);
+  bool coarse = o->coarse_factor > 1 && has_size_bound(i2m_refine_params(r));
+  double t0 = i2m_wtime();
+  if (err == I2M_OK && coarse) { /* the coarse mesh: size bounds x the factor, same threads */
+    i2m_refine_set_size_scale(r, o->coarse_factor);
+    err = warm_up(r, T);
+    if (err == I2M_OK) err = run_phase(&tm, false);
+    i2m_refine_set_size_scale(r, 1.0);
+  } else if (err == I2M_OK) {
+    err = warm_up(r, T);
+  }
+  double t1 = i2m_wtime();
+  if (err == I2M_OK) err = run_phase(&tm, coarse);
+  rep->coarse_seconds = coarse ? t1 - t0 : 0;
+  rep->fine_seconds = i2m_wtime() - t1;
+  report_fill(&tm, rep);
+  team_free(&tm);
+  atomic_store(&team_busy, 0);
+  return err;
+}
+
+void i2m_threads_report_free(i2m_threads_report_t *rep) { i2m_free(&rep->thread); }

@@ -243,6 +243,7 @@ size_t i2m_refine_give(i2m_refine_t *r, int from, int to)
   for (int l = 0; l < NLEVELS; l++) { /* the older half (bottom of the stack): away from a's front */
     badlist_t *q = &a->q[l];
     size_t half = q->n / 2;
+    if (half == 0) continue;
     for (size_t i = 0; i < half; i++)
       if (worker_push_entry(b, l, &q->e[i]) != I2M_OK) return moved;
     memmove(q->e, q->e + half, (q->n - half) * sizeof *q->e);

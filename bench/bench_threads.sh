@@ -1,0 +1,27 @@
+#!/bin/sh
+# Shared-memory speedup: knee_atlas.nrrd at about 6 M tets on 1 and 2 threads (this
+# machine's cores); records wall times, speedup, rollbacks and per-thread figures into
+# bench/results/threads.json.
+set -eu
+DATA=${I2M_DATA:-../shared/data}
+OUT=bench/results
+TMP=$(mktemp -d)
+PY=${PYTHON:-/usr/bin/python3}
+for T in 1 2; do
+  bin/i2m "$DATA/knee_atlas.nrrd" -o "$TMP/knee$T.vtu" --delta 0.33 --threads "$T" --report "$TMP/knee$T.json" --quiet
+  rm -f "$TMP/knee$T.vtu"
+done
+"$PY" - "$TMP/knee1.json" "$TMP/knee2.json" <<'PY' | tee "$OUT/threads.json"
+import json, sys
+r1, r2 = (json.load(open(f)) for f in sys.argv[1:3])
+t1, t2 = r1["time_seconds"]["refinement"], r2["time_seconds"]["refinement"]
+res = {"benchmark": "threads", "input": "knee_atlas.nrrd", "delta": r1["parameters"]["delta"],
+       "tets": [r1["counts"]["tetrahedra"], r2["counts"]["tetrahedra"]],
+       "refinement_seconds": {"1": t1, "2": t2}, "total_seconds": {"1": r1["time_seconds"]["total"], "2": r2["time_seconds"]["total"]},
+       "speedup_refinement": t1 / t2, "speedup_total": r1["time_seconds"]["total"] / r2["time_seconds"]["total"],
+       "tets_per_second": {"1": r1["speed"]["tets_per_second"], "2": r2["speed"]["tets_per_second"]},
+       "rollbacks": r2["refinement"]["rollbacks"], "insertions": r2["refinement"]["insertions"],
+       "per_thread": r2["threads"]["per_thread"], "binding": r2["threads"]["binding"], "target_speedup": 1.8}
+print(json.dumps(res, indent=1))
+PY
+rm -rf "$TMP"

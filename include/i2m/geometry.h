@@ -28,6 +28,10 @@ double i2m_tet_radius_edge(const double a[3], const double b[3], const double c[
 void i2m_tet_dihedral_angles(const double a[3], const double b[3], const double c[3], const double d[3],
                              double angles[6]);
 
+/** Cosines of the six dihedral angles of tet abcd (same edge order as the angles). */
+void i2m_tet_dihedral_cosines(const double a[3], const double b[3], const double c[3], const double d[3],
+                              double cosines[6]);
+
 /** Circumcentre and squared circumradius of triangle abc (in its plane). */
 int i2m_tri_circumcenter(const double a[3], const double b[3], const double c[3], double cc[3],
                          double *r2);

@@ -13,7 +13,7 @@ extern "C" {
 #endif
 
 /** Phases timed by the driver, in the order they run. */
-enum { I2M_PHASE_READ, I2M_PHASE_EDT, I2M_PHASE_REFINE, I2M_PHASE_EXTRACT, I2M_PHASE_WRITE, I2M_NPHASES };
+enum { I2M_PHASE_READ, I2M_PHASE_EDT, I2M_PHASE_REFINE, I2M_PHASE_EXTRACT, I2M_PHASE_WRITE, I2M_PHASE_QUALITY, I2M_NPHASES };
 
 /** Everything a run reports (all borrowed). */
 typedef struct {

@@ -67,7 +67,9 @@ static i2m_err_t report(run_t *r)
 {
   i2m_report_t *rep = &r->rep;
   const i2m_refine_params_t *p = i2m_refine_params(r->ref);
+  phase_begin(r, "quality figures");
   I2M_CALL(i2m_quality_compute(r->mesh, r->img, p->ratio, p->facet_angle, &r->quality));
+  phase_end(r, I2M_PHASE_QUALITY);
   rep->input = r->opt.input;
   rep->output = r->opt.output;
   rep->img = r->img;

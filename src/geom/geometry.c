@@ -148,8 +148,8 @@ double i2m_tet_radius_edge(const double a[3], const double b[3], const double c[
   return sqrt(r2 / i2m_tet_min_edge2(a, b, c, d));
 }
 
-void i2m_tet_dihedral_angles(const double a[3], const double b[3], const double c[3], const double d[3],
-                             double angles[6])
+void i2m_tet_dihedral_cosines(const double a[3], const double b[3], const double c[3], const double d[3],
+                              double cosines[6])
 {
   /* face normals (outward for a positive tet), face k opposite vertex k */
   const double *p[4] = {a, b, c, d};
@@ -164,20 +164,21 @@ void i2m_tet_dihedral_angles(const double a[3], const double b[3], const double 
     if (l > 0)
       for (int k = 0; k < 3; k++) n[f][k] /= l;
   }
-  /* the dihedral angle at edge (i,j) is between the faces opposite the other two vertices */
-  static const int edges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+  /* the dihedral angle at edge (i,j) is between the faces opposite the other two vertices:
+   * edges ab, ac, ad, bc, bd, cd <-> face pairs (2,3), (1,3), (1,2), (0,3), (0,2), (0,1) */
+  static const int fp[6][2] = {{2, 3}, {1, 3}, {1, 2}, {0, 3}, {0, 2}, {0, 1}};
   for (int e = 0; e < 6; e++) {
-    int f1 = -1, f2 = -1;
-    for (int k = 0; k < 4; k++)
-      if (k != edges[e][0] && k != edges[e][1]) {
-        if (f1 < 0) f1 = k;
-        else f2 = k;
-      }
-    double cs = -dot3(n[f1], n[f2]);
-    if (cs > 1) cs = 1;
-    if (cs < -1) cs = -1;
-    angles[e] = acos(cs) * (180.0 / I2M_PI);
+    double cs = -dot3(n[fp[e][0]], n[fp[e][1]]);
+    cosines[e] = cs > 1 ? 1 : cs < -1 ? -1 : cs;
   }
+}
+
+void i2m_tet_dihedral_angles(const double a[3], const double b[3], const double c[3], const double d[3],
+                             double angles[6])
+{
+  double cs[6];
+  i2m_tet_dihedral_cosines(a, b, c, d, cs);
+  for (int e = 0; e < 6; e++) angles[e] = acos(cs[e]) * (180.0 / I2M_PI);
 }
 
 int i2m_tri_circumcenter(const double a[3], const double b[3], const double c[3], double cc[3],

@@ -7,7 +7,8 @@
 
 const char *i2m_phase_name(int phase)
 {
-  static const char *names[I2M_NPHASES] = {"read", "distance_transform", "refinement", "extraction", "write"};
+  static const char *names[I2M_NPHASES] = {"read", "distance_transform", "refinement", "extraction", "write",
+                                           "quality"};
   return phase >= 0 && phase < I2M_NPHASES ? names[phase] : "?";
 }
 

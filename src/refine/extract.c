@@ -15,21 +15,77 @@ static int64_t neighbour_label(const i2m_refine_t *r, uint32_t t, int i)
   return n == I2M_DT_NONE ? 0 : r->img->label_value[tinfo(r->dt, n >> 2)->label];
 }
 
-/* Counts kept tets and interface triangles, and numbers the vertices they use. */
-static void extract_count(const i2m_refine_t *r, int32_t *vmap, int64_t *nv, int64_t *nt, int64_t *ntri)
+/* The tet slots are cut into EXTRACT_CHUNKS fixed chunks: counted in parallel, offsets by
+ * prefix sums, filled in parallel; the output does not depend on the number of threads. */
+#define EXTRACT_CHUNKS 256
+
+static bool kept(const i2m_refine_t *r, uint32_t t) { return i2m_dt_alive(r->dt, t) && tinfo(r->dt, t)->label != 0; }
+
+/* The interface faces of kept tet t to write (each once: from the side with the smaller label
+ * value, or the only labelled side). */
+static int faces_to_write(const i2m_refine_t *r, uint32_t t, int64_t lt, int64_t lu[4])
+{
+  int n = 0;
+  for (int i = 0; i < 4; i++) {
+    lu[i] = neighbour_label(r, t, i);
+    n += lu[i] != lt && (lu[i] == 0 || lt < lu[i]);
+  }
+  return n;
+}
+
+/* Pass 1: per chunk, the kept tets and interface triangles; marks the vertices used. */
+static void extract_count(const i2m_refine_t *r, uint8_t *used, int64_t *ntet, int64_t *ntri)
 {
   const i2m_dt_t *dt = r->dt;
   uint32_t nslots = i2m_dt_ntets_slots(dt);
-  *nv = *nt = *ntri = 0;
-  for (uint32_t t = 0; t < nslots; t++) {
-    if (!i2m_dt_alive(dt, t) || tinfo(dt, t)->label == 0) continue;
-    (*nt)++;
-    int64_t lt = r->img->label_value[tinfo(dt, t)->label];
+  I2M_OMP(omp parallel for schedule(dynamic, 4))
+  for (int c = 0; c < EXTRACT_CHUNKS; c++) {
+    uint32_t lo = (uint32_t)((uint64_t)nslots * c / EXTRACT_CHUNKS), hi = (uint32_t)((uint64_t)nslots * (c + 1) / EXTRACT_CHUNKS);
+    int64_t nt = 0, nf = 0;
+    for (uint32_t t = lo; t < hi; t++) {
+      if (!kept(r, t)) continue;
+      nt++;
+      int64_t lu[4];
+      nf += faces_to_write(r, t, r->img->label_value[tinfo(dt, t)->label], lu);
+      for (int i = 0; i < 4; i++) /* the same value from any thread: an atomic store */
+        atomic_store_explicit((_Atomic uint8_t *)&used[dt->tv[4 * (size_t)t + i]], 1, memory_order_relaxed);
+    }
+    ntet[c + 1] = nt;
+    ntri[c + 1] = nf;
+  }
+  ntet[0] = ntri[0] = 0;
+  for (int c = 0; c < EXTRACT_CHUNKS; c++) { /* offsets */
+    ntet[c + 1] += ntet[c];
+    ntri[c + 1] += ntri[c];
+  }
+}
+
+/* Pass 2: the tets and triangles of chunk c at its offsets. */
+static void extract_fill_chunk(const i2m_refine_t *r, const int32_t *vmap, i2m_tetmesh_t *m, int c, int64_t kt,
+                               int64_t kf)
+{
+  const i2m_dt_t *dt = r->dt;
+  uint32_t nslots = i2m_dt_ntets_slots(dt);
+  uint32_t lo = (uint32_t)((uint64_t)nslots * c / EXTRACT_CHUNKS), hi = (uint32_t)((uint64_t)nslots * (c + 1) / EXTRACT_CHUNKS);
+  for (uint32_t t = lo; t < hi; t++) {
+    if (!kept(r, t)) continue;
+    const uint32_t *v = dt->tv + 4 * (size_t)t;
+    int64_t lt = r->img->label_value[tinfo(dt, t)->label], lu[4];
+    for (int i = 0; i < 4; i++) m->tet[4 * kt + i] = vmap[v[i]];
+    m->tet_label[kt++] = lt;
+    faces_to_write(r, t, lt, lu);
     for (int i = 0; i < 4; i++) {
-      uint32_t v = dt->tv[4 * (size_t)t + i];
-      if (vmap[v] < 0) vmap[v] = (int32_t)(*nv)++;
-      int64_t lu = neighbour_label(r, t, i);
-      if (lu != lt && (lu == 0 || lt < lu)) (*ntri)++;
+      if (lu[i] == lt || !(lu[i] == 0 || lt < lu[i])) continue;
+      int32_t *f = m->tri + 3 * kf; /* outward normal goes from lt to lu: flip when lt is larger */
+      for (int k = 0; k < 3; k++) f[k] = vmap[v[FACE_OUT[i][k]]];
+      if (!(lt < lu[i])) {
+        int32_t x = f[0];
+        f[0] = f[1];
+        f[1] = x;
+      }
+      m->tri_label[2 * kf] = lt < lu[i] ? lt : lu[i];
+      m->tri_label[2 * kf + 1] = lt < lu[i] ? lu[i] : lt;
+      kf++;
     }
   }
 }
@@ -37,48 +93,33 @@ static void extract_count(const i2m_refine_t *r, int32_t *vmap, int64_t *nv, int
 i2m_err_t i2m_refine_extract(const i2m_refine_t *r, i2m_tetmesh_t **out)
 {
   const i2m_dt_t *dt = r->dt;
-  const i2m_image_t *img = r->img;
   int32_t *vmap = NULL;
+  uint8_t *used = NULL;
+  int64_t *ntet = NULL, *ntri = NULL;
   i2m_tetmesh_t *m = NULL;
   i2m_err_t err = I2M_OK;
-  uint32_t nvs = i2m_dt_nverts_slots(dt), nslots = i2m_dt_ntets_slots(dt);
+  uint32_t nvs = i2m_dt_nverts_slots(dt);
   *out = NULL;
-  I2M_CALL(i2m_malloc(nvs, sizeof *vmap, &vmap));
-  for (uint32_t v = 0; v < nvs; v++) vmap[v] = -1;
-  int64_t nv, nt, ntri;
-  extract_count(r, vmap, &nv, &nt, &ntri);
-  I2M_CALL_GOTO(err, done, i2m_tetmesh_create(nv, nt, ntri, &m));
-  for (uint32_t v = 0; v < nvs; v++)
-    if (vmap[v] >= 0) memcpy(m->xyz + 3 * (size_t)vmap[v], i2m_dt_xyz(dt, v), 3 * sizeof(double));
-  int64_t kt = 0, kf = 0;
-  for (uint32_t t = 0; t < nslots; t++) {
-    if (!i2m_dt_alive(dt, t) || tinfo(dt, t)->label == 0) continue;
-    const uint32_t *v = dt->tv + 4 * (size_t)t;
-    int64_t lt = img->label_value[tinfo(dt, t)->label];
-    int32_t *q = m->tet + 4 * kt;
-    for (int i = 0; i < 4; i++) q[i] = vmap[v[i]];
-    m->tet_label[kt++] = lt;
-    for (int i = 0; i < 4; i++) {
-      int64_t lu = neighbour_label(r, t, i);
-      if (lu == lt || !(lu == 0 || lt < lu)) continue;
-      /* the outward normal goes from lt to lu: keep it when lt is the smaller value */
-      bool keep = lt < lu;
-      int32_t *f = m->tri + 3 * kf;
-      for (int k = 0; k < 3; k++) f[k] = vmap[v[FACE_OUT[i][k]]];
-      if (!keep) {
-        int32_t x = f[0];
-        f[0] = f[1];
-        f[1] = x;
-      }
-      m->tri_label[2 * kf] = lt < lu ? lt : lu;
-      m->tri_label[2 * kf + 1] = lt < lu ? lu : lt;
-      kf++;
-    }
-  }
+  I2M_CALL_GOTO(err, done, i2m_calloc(nvs, sizeof *used, &used));
+  I2M_CALL_GOTO(err, done, i2m_malloc(nvs, sizeof *vmap, &vmap));
+  I2M_CALL_GOTO(err, done, i2m_malloc(EXTRACT_CHUNKS + 1, sizeof *ntet, &ntet));
+  I2M_CALL_GOTO(err, done, i2m_malloc(EXTRACT_CHUNKS + 1, sizeof *ntri, &ntri));
+  extract_count(r, used, ntet, ntri);
+  int64_t nv = 0;
+  for (uint32_t v = 0; v < nvs; v++) vmap[v] = used[v] ? (int32_t)nv++ : -1;
+  I2M_CALL_GOTO(err, done, i2m_tetmesh_create(nv, ntet[EXTRACT_CHUNKS], ntri[EXTRACT_CHUNKS], &m));
+  I2M_OMP(omp parallel for schedule(static))
+  for (int64_t v = 0; v < (int64_t)nvs; v++)
+    if (vmap[v] >= 0) memcpy(m->xyz + 3 * (size_t)vmap[v], i2m_dt_xyz(dt, (uint32_t)v), 3 * sizeof(double));
+  I2M_OMP(omp parallel for schedule(dynamic, 4))
+  for (int c = 0; c < EXTRACT_CHUNKS; c++) extract_fill_chunk(r, vmap, m, c, ntet[c], ntri[c]);
   *out = m;
   m = NULL;
 done:
   i2m_free(&vmap);
+  i2m_free(&used);
+  i2m_free(&ntet);
+  i2m_free(&ntri);
   i2m_tetmesh_destroy(&m);
   return err;
 }

@@ -6,27 +6,74 @@
 
 #include "i2m/geometry.h"
 
-static void tet_figures(const i2m_tetmesh_t *m, i2m_quality_t *q)
+/* 1-degree bin of an angle from its cosine, without acos and without unpredictable branches:
+ * a table over c in [-1, 1] whose cells are narrower than the gap between two consecutive
+ * cos(k deg), so a cell holds at most one bin boundary, settled by one comparison. */
+#define BIN_CELLS 65536
+typedef struct {
+  double cos_deg[181];          /* cos(k deg), k = 0..180 */
+  uint8_t bin_at_top[BIN_CELLS]; /* the bin of the cell's upper end */
+} angle_bins_t;
+
+static int bin_of_cos_slow(const double *cos_deg, double c)
 {
-  q->min_dihedral = 180;
-  q->max_dihedral = 0;
-  q->max_radius_edge = 0;
-  for (int64_t t = 0; t < m->nt; t++) {
-    const int32_t *v = m->tet + 4 * t;
-    const double *a = m->xyz + 3 * (size_t)v[0], *b = m->xyz + 3 * (size_t)v[1];
-    const double *c = m->xyz + 3 * (size_t)v[2], *d = m->xyz + 3 * (size_t)v[3];
-    double ang[6];
-    i2m_tet_dihedral_angles(a, b, c, d, ang);
-    for (int k = 0; k < 6; k++) {
-      q->min_dihedral = fmin(q->min_dihedral, ang[k]);
-      q->max_dihedral = fmax(q->max_dihedral, ang[k]);
-      int bin = (int)ang[k];
-      q->dihedral_hist[bin < 0 ? 0 : bin > 179 ? 179 : bin]++;
+  int b = 0; /* angles in [b, b+1) deg have cos in (cos(b+1), cos(b)] */
+  while (b < 179 && c <= cos_deg[b + 1]) b++;
+  return b;
+}
+
+static void angle_bins_init(angle_bins_t *t)
+{
+  for (int k = 0; k <= 180; k++) t->cos_deg[k] = cos(k * I2M_PI / 180.0);
+  for (int i = 0; i < BIN_CELLS; i++)
+    t->bin_at_top[i] = (uint8_t)bin_of_cos_slow(t->cos_deg, -1.0 + 2.0 * (i + 1) / BIN_CELLS);
+}
+
+static int angle_bin(const angle_bins_t *t, double c)
+{
+  int i = (int)((c + 1.0) * (0.5 * BIN_CELLS));
+  i = i < 0 ? 0 : i >= BIN_CELLS ? BIN_CELLS - 1 : i;
+  int b = t->bin_at_top[i]; /* lower c: larger angle, at most one boundary further */
+  return b + (b < 179 && c <= t->cos_deg[b + 1]);
+}
+
+/* Dihedral angles and radius-edge ratios of every tet (OpenMP-parallel: per-thread
+ * extremes and histograms, merged; angles handled by their cosines). */
+static i2m_err_t tet_figures(const i2m_tetmesh_t *m, i2m_quality_t *q)
+{
+  angle_bins_t *bins = NULL;
+  I2M_CALL(i2m_malloc(1, sizeof *bins, &bins));
+  angle_bins_init(bins);
+  double maxc = -1, minc = 1, maxre = 0;
+  int64_t above = 0;
+  I2M_OMP(omp parallel reduction(max : maxc, maxre) reduction(min : minc) reduction(+ : above))
+  {
+    int64_t hist[180] = {0};
+    I2M_OMP(omp for schedule(static))
+    for (int64_t t = 0; t < m->nt; t++) {
+      const int32_t *v = m->tet + 4 * t;
+      const double *a = m->xyz + 3 * (size_t)v[0], *b = m->xyz + 3 * (size_t)v[1];
+      const double *c = m->xyz + 3 * (size_t)v[2], *d = m->xyz + 3 * (size_t)v[3];
+      double cs[6];
+      i2m_tet_dihedral_cosines(a, b, c, d, cs);
+      for (int k = 0; k < 6; k++) {
+        maxc = cs[k] > maxc ? cs[k] : maxc; /* smallest angle */
+        minc = cs[k] < minc ? cs[k] : minc; /* largest angle */
+        hist[angle_bin(bins, cs[k])]++;
+      }
+      double re = i2m_tet_radius_edge(a, b, c, d);
+      maxre = re > maxre ? re : maxre;
+      above += re > q->ratio_bound * (1 + 1e-9);
     }
-    double re = i2m_tet_radius_edge(a, b, c, d);
-    q->max_radius_edge = fmax(q->max_radius_edge, re);
-    q->n_ratio_above += re > q->ratio_bound * (1 + 1e-9);
+    I2M_OMP(omp critical(i2m_quality_hist))
+    for (int k = 0; k < 180; k++) q->dihedral_hist[k] += hist[k];
   }
+  q->min_dihedral = m->nt ? acos(maxc) * (180.0 / I2M_PI) : 0;
+  q->max_dihedral = m->nt ? acos(minc) * (180.0 / I2M_PI) : 0;
+  q->max_radius_edge = maxre;
+  q->n_ratio_above = above;
+  i2m_free(&bins);
+  return I2M_OK;
 }
 
 /* Marks the vertices on which interface triangles of three or more labels meet. */
@@ -110,7 +157,7 @@ i2m_err_t i2m_quality_compute(const i2m_tetmesh_t *m, const i2m_image_t *img, do
   memset(q, 0, sizeof *q);
   q->ratio_bound = ratio_bound;
   q->facet_bound = facet_bound;
-  tet_figures(m, q);
+  I2M_CALL(tet_figures(m, q));
   I2M_CALL(facet_figures(m, q));
   I2M_CALL(label_figures(m, img, q));
   return I2M_OK;

@@ -74,15 +74,18 @@ typedef struct {
 } pending_t;
 
 struct i2m_refine_worker {
+  char pad_front[64];   /* keeps each worker's busy fields off its neighbours' cache lines */
   i2m_refine_t *r;      /* borrowed */
   i2m_dt_ctx_t ctx;     /* kernel context */
   badlist_t q[NLEVELS]; /* this worker's bad elements */
   pending_t *pend;      /* R7 removals still to do */
   uint32_t npend, cap_pend;
+  i2m_gidx_t gid_next, gid_end; /* this worker's block of global ids */
   uint32_t *created;    /* tets created by one operation (copied from ctx->newt) */
   uint32_t ncreated, cap_created;
   i2m_refine_stats_t st;
   i2m_progress_t progress;
+  char pad_back[64];
 };
 
 struct i2m_refine {

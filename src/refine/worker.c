@@ -147,7 +147,11 @@ static i2m_err_t queue_r7(i2m_refine_worker_t *w, const double z[3])
 static i2m_dt_status_t insert_action(i2m_refine_worker_t *w, const action_t *a, uint32_t *v)
 {
   i2m_refine_t *r = w->r;
-  i2m_gidx_t gid = atomic_fetch_add_explicit(&r->next_gid, 1, memory_order_relaxed);
+  if (w->gid_next == w->gid_end) { /* global ids come in blocks: no shared counter per insertion */
+    w->gid_next = atomic_fetch_add_explicit(&r->next_gid, 1024, memory_order_relaxed);
+    w->gid_end = w->gid_next + 1024;
+  }
+  i2m_gidx_t gid = w->gid_next++;
   i2m_dt_status_t st = i2m_dt_insert(&w->ctx, a->p, gid, a->kind, a->seed, I2M_DT_NONE, v);
   if (st == I2M_DT_NOT_IN_CONFLICT && !w->ctx.locking) {
     uint32_t t = i2m_dt_locate(&w->ctx, a->p, a->seed);

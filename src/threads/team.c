@@ -25,6 +25,12 @@
 
 #include "threads_impl.h"
 
+/* A counter alone on its cache line: each thread bumps its own every step. */
+typedef struct {
+  _Atomic uint64_t n;
+  char pad[64 - sizeof(_Atomic uint64_t)];
+} padded_counter_t;
+
 typedef struct {
   i2m_refine_t *r;
   int T;
@@ -42,7 +48,7 @@ typedef struct {
   /* lock-free */
   _Atomic int pause_req, done, nbeggars;
   _Atomic int finished;
-  _Atomic uint64_t *progress; /* [T] steps done: what a waiting thread watches */
+  padded_counter_t *progress; /* [T] steps done: what a waiting thread watches */
   i2m_thread_figures_t *fig;  /* [T] each thread writes its own */
   i2m_pinning_t *pin;
 } team_t;
@@ -106,7 +112,7 @@ static void pause_request(team_t *tm)
 static void go_idle(team_t *tm, int k)
 {
   double t0 = i2m_wtime();
-  atomic_fetch_add_explicit(&tm->progress[k], 1, memory_order_release); /* waiters: I hold nothing */
+  atomic_fetch_add_explicit(&tm->progress[k].n, 1, memory_order_release); /* waiters: I hold nothing */
   pthread_mutex_lock(&tm->mu);
   if (!atomic_load_explicit(&tm->pause_req, memory_order_relaxed)) {
     tm->idle++;
@@ -159,10 +165,10 @@ static void contention(team_t *tm, int k)
   int o = i2m_refine_conflict_worker(tm->r, k);
   if (o <= k) return;
   double t0 = i2m_wtime();
-  uint64_t p0 = atomic_load_explicit(&tm->progress[o], memory_order_acquire);
+  uint64_t p0 = atomic_load_explicit(&tm->progress[o].n, memory_order_acquire);
   tm->fig[k].waits++;
   for (int spin = 0; spin < WAIT_SPINS; spin++) {
-    if (atomic_load_explicit(&tm->progress[o], memory_order_acquire) != p0 ||
+    if (atomic_load_explicit(&tm->progress[o].n, memory_order_acquire) != p0 ||
         atomic_load_explicit(&tm->pause_req, memory_order_relaxed) || atomic_load_explicit(&tm->done, memory_order_relaxed))
       break;
     sched_yield();
@@ -179,7 +185,7 @@ static void team_loop(team_t *tm, int k)
     if (atomic_load_explicit(&tm->done, memory_order_acquire)) break;
     int s = i2m_refine_step(r, k);
     if (s == I2M_STEP_DONE) {
-      atomic_fetch_add_explicit(&tm->progress[k], 1, memory_order_release);
+      atomic_fetch_add_explicit(&tm->progress[k].n, 1, memory_order_release);
       maybe_share(tm, k);
     } else if (s == I2M_STEP_ROLLBACK) {
       contention(tm, k);
@@ -257,7 +263,7 @@ static i2m_err_t team_init(team_t *tm, i2m_refine_t *r, int T, bool pin)
   I2M_CALL(i2m_calloc((size_t)T, sizeof *tm->fig, &tm->fig));
   I2M_CALL(i2m_malloc((size_t)T, sizeof *tm->progress, &tm->progress));
   for (int k = 0; k < T; k++) {
-    atomic_init(&tm->progress[k], 0);
+    atomic_init(&tm->progress[k].n, 0);
     tm->fig[k].core = pin ? -2 : -1; /* -2: to bind at the first phase */
   }
   tm->pin = pin ? pinning_open() : NULL;

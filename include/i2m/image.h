@@ -71,6 +71,10 @@ i2m_err_t i2m_image_create_from_values(const int64_t n[3], const double spacing[
                                        const double origin[3], const double *dir,
                                        const int64_t *values, i2m_image_t **out);
 
+/** Frees the voxels once no label lookup is needed any more (the geometry and the label
+ *  table stay). */
+void i2m_image_release_voxels(i2m_image_t *img);
+
 /** Frees an image; accepts NULL; sets *img = NULL. */
 void i2m_image_destroy(i2m_image_t **img);
 

@@ -133,6 +133,12 @@ void i2m_refine_worker_stats(const i2m_refine_t *r, int k, i2m_refine_stats_t *s
 /** Returns the workers' pooled slots to the triangulation (after a parallel phase). */
 void i2m_refine_sync(i2m_refine_t *r);
 
+/** After refinement: frees the spatial grids and the workers' scratch (extraction, stats and
+ *  parameters stay usable).  The image oracle is not used any more. */
+void i2m_refine_release_scratch(i2m_refine_t *r);
+/** After extraction: frees the triangulation too (stats and parameters stay usable). */
+void i2m_refine_release_mesh(i2m_refine_t *r);
+
 /** The labelled mesh: tets whose circumcentre is inside, with their label value, and the
  *  interface triangles, in world coordinates, compacted.  Not collective. */
 i2m_err_t i2m_refine_extract(const i2m_refine_t *r, i2m_tetmesh_t **out);

@@ -29,7 +29,12 @@ static void phase_begin(run_t *r, const char *what)
   r->tphase = i2m_wtime();
   i2m_debug("i2m: %s", what);
 }
-static void phase_end(run_t *r, int phase) { r->rep.phase_seconds[phase] = i2m_wtime() - r->tphase; }
+static void phase_end(run_t *r, int phase)
+{
+  r->rep.phase_seconds[phase] = i2m_wtime() - r->tphase;
+  i2m_debug("i2m: %s done in %.2f s; resident %.0f MB, peak %.0f MB", i2m_phase_name(phase), r->rep.phase_seconds[phase],
+            (double)i2m_current_rss_bytes() / 1048576.0, (double)i2m_peak_rss_bytes() / 1048576.0);
+}
 
 static i2m_err_t run_mesher(run_t *r)
 {
@@ -48,10 +53,15 @@ static i2m_err_t run_mesher(run_t *r)
   i2m_threads_opts_t to = {o->threads, o->coarse_factor, !o->no_pin};
   I2M_CALL(i2m_threads_refine(r->ref, &to, &r->team));
   if (o->check) I2M_CALL(i2m_dt_check(i2m_refine_dt(r->ref), true));
+  r->rep.working_tets = i2m_dt_count_tets(i2m_refine_dt(r->ref));
+  i2m_refine_release_scratch(r->ref); /* the oracles' memory, before extraction adds the mesh */
+  i2m_edt_destroy(&r->edt);
+  i2m_image_release_voxels(r->img);
   phase_end(r, I2M_PHASE_REFINE);
 
   phase_begin(r, "extraction");
   I2M_CALL(i2m_refine_extract(r->ref, &r->mesh));
+  i2m_refine_release_mesh(r->ref);
   phase_end(r, I2M_PHASE_EXTRACT);
   I2M_CHECK(r->mesh->nt > 0, I2M_ERR_INPUT,
             "%s: the mesh is empty: the labelled region is smaller than what delta = %g mm can resolve; try a smaller --delta",
@@ -78,7 +88,6 @@ static i2m_err_t report(run_t *r)
   rep->nv = r->mesh->nv;
   rep->nt = r->mesh->nt;
   rep->ntri = r->mesh->ntri;
-  rep->working_tets = i2m_dt_count_tets(i2m_refine_dt(r->ref));
   rep->total_seconds = i2m_wtime() - r->t0;
   rep->peak_rss = i2m_peak_rss_bytes();
   rep->threads = r->team.threads;

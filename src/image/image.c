@@ -13,6 +13,8 @@ const char *i2m_scalar_name(i2m_scalar_t t)
   return (unsigned)t < sizeof names / sizeof names[0] ? names[t] : "unknown";
 }
 
+void i2m_image_release_voxels(i2m_image_t *img) { i2m_free(&img->vox); }
+
 void i2m_image_destroy(i2m_image_t **img)
 {
   if (!img || !*img) return;

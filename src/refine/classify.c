@@ -1,24 +1,21 @@
 /* Refine layer: evaluation of the refinement rules on a tet (ARCHITECTURE §4).
  *
- * When a tet is created its circumcentre, radius and the label there are cached
- * (tet_info_compute); classify_level then tells which list the tet belongs to, cheaply,
- * and classify_action, when the tet is popped, computes the point to insert and a tet whose
- * circumball holds it, following the priority R1, R5/R6, R2, R3, R4. */
+ * When a tet is created, the label at its circumcentre is cached (2 bytes); classify_level
+ * then tells which list the tet belongs to, and classify_action, when the tet is popped,
+ * computes the point to insert and a tet whose circumball holds it, following the priority
+ * R1, R5/R6, R2, R3, R4.  Centres and radii are recomputed in double when needed. */
 #include "refine_impl.h"
 
 #include <string.h>
 
-void tet_info_compute(const i2m_refine_t *r, uint32_t t)
+void tet_geom(const i2m_refine_t *r, uint32_t t, bool cached_label, tet_geom_t *g)
 {
   const i2m_dt_t *dt = r->dt;
   const uint32_t *v = dt->tv + 4 * (size_t)t;
-  tet_info_t *ti = tinfo(dt, t);
-  if (i2m_tet_circumcenter(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]),
-                           ti->cc, &ti->r2) != 0) {
-    ti->label = 0;
-    return;
-  }
-  ti->label = (uint16_t)i2m_image_label_at_world(r->img, ti->cc);
+  bool flat = i2m_tet_circumcenter(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]),
+                                   i2m_dt_xyz(dt, v[3]), g->cc, &g->r2) != 0;
+  if (cached_label) g->label = tinfo(dt, t)->label;
+  else g->label = flat ? 0 : i2m_image_label_at_world(r->img, g->cc);
 }
 
 /* Size and ratio bounds at a point (world) with label index lab. */
@@ -42,7 +39,7 @@ static void local_bounds(const i2m_refine_t *r, const double c[3], int lab, doub
 }
 
 /* R3 or R4 on an inside tet. */
-static bool volume_bad(const i2m_refine_t *r, uint32_t t, const tet_info_t *ti)
+static bool volume_bad(const i2m_refine_t *r, uint32_t t, const tet_geom_t *ti)
 {
   const i2m_dt_t *dt = r->dt;
   const uint32_t *v = dt->tv + 4 * (size_t)t;
@@ -54,7 +51,7 @@ static bool volume_bad(const i2m_refine_t *r, uint32_t t, const tet_info_t *ti)
 }
 
 /* Which rule of R3/R4 fires (3 or 4), for the statistics. */
-static int volume_rule(const i2m_refine_t *r, const tet_info_t *ti)
+static int volume_rule(const i2m_refine_t *r, const tet_geom_t *ti)
 {
   double size, ratio;
   local_bounds(r, ti->cc, ti->label, &size, &ratio);
@@ -94,7 +91,7 @@ static int facet_bad(const i2m_refine_t *r, uint32_t t, uint32_t i)
 
 /* Ball of t meets an interface: the closest interface point z to its centre, the patch it
  * lies on, and the squared distance. */
-static bool ball_meets_interface(const i2m_refine_t *r, const tet_info_t *ti, double z[3], uint32_t *patch,
+static bool ball_meets_interface(const i2m_refine_t *r, const tet_geom_t *ti, double z[3], uint32_t *patch,
                                  double *d2)
 {
   *d2 = INFINITY;
@@ -125,10 +122,9 @@ static bool surface_vertex_near(const i2m_refine_t *r, uint32_t t, const double 
   return vgrid_has_within(&r->surf, dt, z, r->p.delta, patch);
 }
 
-int classify_level(i2m_refine_worker_t *w, uint32_t t)
+int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *ti)
 {
   const i2m_refine_t *r = w->r;
-  const tet_info_t *ti = tinfo(r->dt, t);
   double z[3], d2;
   uint32_t patch;
   bool meets = ball_meets_interface(r, ti, z, &patch, &d2);
@@ -146,10 +142,12 @@ static bool facet_action(const i2m_refine_t *r, uint32_t t, uint32_t i, action_t
 {
   const i2m_dt_t *dt = r->dt;
   uint32_t u = dt->tn[4 * t + i] >> 2;
-  const tet_info_t *ti = tinfo(dt, t), *tu = tinfo(dt, u);
-  if (!isfinite(ti->r2) || !isfinite(tu->r2)) return false;
+  tet_geom_t gt, gu;
+  tet_geom(r, t, true, &gt);
+  tet_geom(r, u, true, &gu);
+  if (!isfinite(gt.r2) || !isfinite(gu.r2)) return false;
   int la, lb;
-  i2m_edt_bisect(r->img, ti->cc, tu->cc, r->bisect_tol, a->p, &la, &lb);
+  i2m_edt_bisect(r->img, gt.cc, gu.cc, r->bisect_tol, a->p, &la, &lb);
   if (la == lb || !in_box(dt, a->p)) return false;
   a->patch = patch_key(la, lb);
   i2m_gidx_t none = INT64_MAX; /* a fresh point: its id is larger than every vertex's */
@@ -170,7 +168,9 @@ int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t sk
 {
   const i2m_refine_t *r = w->r;
   const i2m_dt_t *dt = r->dt;
-  const tet_info_t *ti = tinfo(dt, t);
+  tet_geom_t g;
+  const tet_geom_t *ti = &g;
+  tet_geom(r, t, true, &g);
   memset(a, 0, sizeof *a);
   a->seed = t;
   double z[3], d2;

@@ -132,7 +132,7 @@ void i2m_refine_destroy(i2m_refine_t **rp)
 {
   if (!rp || !*rp) return;
   i2m_refine_t *r = *rp;
-  for (int k = 0; k < r->nworkers && r->workers; k++) worker_free(&r->workers[k]);
+  for (int k = 0; k < r->nworkers && r->workers; k++) worker_free(&r->workers[k]); /* accepts freed ones */
   i2m_free(&r->workers);
   vgrid_free(&r->surf);
   vgrid_free(&r->freev);
@@ -330,3 +330,17 @@ void i2m_refine_sync(i2m_refine_t *r)
 {
   for (int k = 0; k < r->nworkers; k++) i2m_dt_ctx_flush(&r->workers[k].ctx);
 }
+
+void i2m_refine_release_scratch(i2m_refine_t *r)
+{
+  vgrid_free(&r->surf);
+  vgrid_free(&r->freev);
+  for (int k = 0; k < r->nworkers; k++) { /* keep the statistics */
+    i2m_refine_worker_t *w = &r->workers[k];
+    i2m_refine_stats_t st = w->st;
+    worker_free(w);
+    w->st = st;
+  }
+}
+
+void i2m_refine_release_mesh(i2m_refine_t *r) { i2m_dt_destroy(&r->dt); }

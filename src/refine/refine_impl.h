@@ -10,16 +10,20 @@
 #include "i2m/predicates.h"
 #include "i2m/refine.h"
 
-/** Payload of every tet (kernel tpay), computed when the tet is created. */
+/** Payload of every tet (kernel tpay), set when the tet is created: only the label at its
+ *  circumcentre (2 bytes per tet); centre and radius are recomputed when needed. */
 typedef struct {
-  double cc[3];   /* circumcentre, grid frame */
-  double r2;      /* squared circumradius (INFINITY for a flat tet) */
   uint16_t label; /* label index at the circumcentre */
-  uint16_t pad16;
-  uint32_t pad32;
 } tet_info_t;
 
 static inline tet_info_t *tinfo(const i2m_dt_t *dt, uint32_t t) { return (tet_info_t *)i2m_dt_payload(dt, t); }
+
+/** A tet's circumcentre (world), squared circumradius (INFINITY when flat) and label. */
+typedef struct {
+  double cc[3];
+  double r2;
+  int label;
+} tet_geom_t;
 
 /** A bad element: a tet, its meta when recorded (stale once the tet changes) and its
  *  vertices, which a thread locks before it reads anything of the tet. */
@@ -82,6 +86,8 @@ struct i2m_refine_worker {
   uint32_t npend, cap_pend;
   i2m_gidx_t gid_next, gid_end; /* this worker's block of global ids */
   uint32_t *created;    /* tets created by one operation (copied from ctx->newt) */
+  tet_geom_t *geom;     /* [cap_geom] their centres while they are classified */
+  uint32_t cap_geom;
   uint32_t ncreated, cap_created;
   i2m_refine_stats_t st;
   i2m_progress_t progress;
@@ -108,8 +114,10 @@ struct i2m_refine {
 };
 
 /* classify.c */
-void tet_info_compute(const i2m_refine_t *r, uint32_t t);
-int classify_level(i2m_refine_worker_t *w, uint32_t t);
+/** Circumcentre and radius of tet t; the label is looked up (at creation) or read from the
+ *  payload (cached). */
+void tet_geom(const i2m_refine_t *r, uint32_t t, bool cached_label, tet_geom_t *g);
+int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *g);
 /** The action for tet t (its vertices locked), skipping the rules whose bit (1 << rule) is
  *  set in skip (their point could not go in); 0 when nothing is to be done. */
 int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t skip);

@@ -24,25 +24,39 @@ void worker_free(i2m_refine_worker_t *w)
   for (int l = 0; l < NLEVELS; l++) i2m_free(&w->q[l].e);
   i2m_free(&w->pend);
   i2m_free(&w->created);
+  i2m_free(&w->geom);
   memset(w, 0, sizeof *w);
+}
+
+/* Drops the entries of tets that are gone (their generation moved on).  The mark bit is
+ * masked: another thread may mark a live tet for a moment, its entry must stay. */
+static void compact_list(const i2m_dt_t *dt, badlist_t *q)
+{
+  size_t k = 0;
+  for (size_t i = 0; i < q->n; i++)
+    if ((i2m_dt_meta(dt, q->e[i].t) & ~I2M_TM_MARK) == q->e[i].meta) q->e[k++] = q->e[i];
+  q->n = k;
 }
 
 i2m_err_t worker_push_entry(i2m_refine_worker_t *w, int level, const bad_t *b)
 {
   badlist_t *q = &w->q[level];
   if (q->n == q->cap) {
-    size_t cap = q->cap ? 2 * q->cap : 1024;
-    I2M_CALL(i2m_realloc(cap, sizeof *q->e, &q->e));
-    q->cap = cap;
+    if (q->cap >= 4096) compact_list(w->r->dt, q); /* before growing: most may be stale */
+    if (q->n + q->cap / 4 >= q->cap) {
+      size_t cap = q->cap ? 2 * q->cap : 1024;
+      I2M_CALL(i2m_realloc(cap, sizeof *q->e, &q->e));
+      q->cap = cap;
+    }
   }
   q->e[q->n++] = *b;
   return I2M_OK;
 }
 
 /* Classifies tet t (its vertices locked, or a sequential run) and queues it if it is bad. */
-i2m_err_t worker_push(i2m_refine_worker_t *w, uint32_t t)
+static i2m_err_t push_classified(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *g)
 {
-  int level = classify_level(w, t);
+  int level = classify_level(w, t, g);
   if (level < 0) return I2M_OK;
   bad_t b;
   b.t = t;
@@ -51,10 +65,26 @@ i2m_err_t worker_push(i2m_refine_worker_t *w, uint32_t t)
   return worker_push_entry(w, level, &b);
 }
 
+i2m_err_t worker_push(i2m_refine_worker_t *w, uint32_t t)
+{
+  tet_geom_t g;
+  tet_geom(w->r, t, true, &g);
+  return push_classified(w, t, &g);
+}
+
+/* The new tets: first every label (the facet rules compare neighbours'), then the rules. */
 i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, uint32_t n)
 {
-  for (uint32_t k = 0; k < n; k++) tet_info_compute(w->r, newt[k]);
-  for (uint32_t k = 0; k < n; k++) I2M_CALL(worker_push(w, newt[k]));
+  if (n > w->cap_geom) {
+    uint32_t cap = n + n / 2 + 64;
+    I2M_CALL(i2m_realloc(cap, sizeof *w->geom, &w->geom));
+    w->cap_geom = cap;
+  }
+  for (uint32_t k = 0; k < n; k++) {
+    tet_geom(w->r, newt[k], false, &w->geom[k]);
+    tinfo(w->r->dt, newt[k])->label = (uint16_t)w->geom[k].label;
+  }
+  for (uint32_t k = 0; k < n; k++) I2M_CALL(push_classified(w, newt[k], &w->geom[k]));
   w->st.tets_created += n;
   return I2M_OK;
 }

@@ -92,7 +92,7 @@ DEPS_STAMP := build/.deps-ok
 
 # ---- build rules --------------------------------------------------------------------------
 .SECONDARY:
-.PHONY: all lib programs unit-tests check check-unit check-scripts check-layers check-tsan bench demo deps clean
+.PHONY: all lib programs unit-tests check check-unit check-scripts check-layers check-tsan check-full bench demo deps clean
 
 all: $(PROGRAMS) $(LIB)
 lib: $(LIB)
@@ -169,6 +169,11 @@ check-scripts: all
 
 check-layers:
 	$(Q)sh tools/check_layers.sh
+
+# every image of ../shared/data at 1, 2 and 4 threads (about an hour on 2 cores)
+check-full: all
+	$(Q)I2M_IMAGES="liver.inr.gz spine_verse009.nii.gz brain_kmeans_noisy.nii.gz vertebrae_vbseg.mha \
+	  knee_atlas.nrrd abdominal_atlas.nrrd head_colin27.nii.gz" sh tests/scripts/test_threads_real_images.sh
 
 check-tsan:
 	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=thread all $(BUILD_TSAN_TESTS)

@@ -33,7 +33,9 @@ typedef enum {
 #define I2M_PRINTF(f, a) __attribute__((format(printf, f, a)))
 #define I2M_LIKELY(x) __builtin_expect(!!(x), 1)
 #define I2M_UNLIKELY(x) __builtin_expect(!!(x), 0)
+#define I2M_NOINLINE __attribute__((noinline))
 #else
+#define I2M_NOINLINE
 #define I2M_PRINTF(f, a)
 #define I2M_LIKELY(x) (x)
 #define I2M_UNLIKELY(x) (x)

@@ -118,7 +118,10 @@ static inline double i2m_pred_max4_(double a, double b, double c, double d)
  *  Semi-static bound: with M_x, M_y, M_z the largest |coordinate| per axis and
  *  L = M_x^2 + M_y^2 + M_z^2, the permanent of Shewchuk's stage-A bound is at most
  *  24 L M_x M_y M_z; 25 absorbs the rounding of every factor, so the bound stays rigorous. */
-static inline int i2m_insphere_filter_rows(const double ra[4], const double rb[4], const double rc[4],
+/** The insphere determinant of rows already translated by the query point e and lifted:
+ *  r = (x - ex, y - ey, z - ez, |r|^2) for a, b, c, d (plain floating point: a filter must
+ *  certify its sign). */
+static inline double i2m_insphere_det_rows(const double ra[4], const double rb[4], const double rc[4],
                                            const double rd[4])
 {
   const double ax = ra[0], ay = ra[1], az = ra[2], bx = rb[0], by = rb[1], bz = rb[2];
@@ -129,15 +132,32 @@ static inline int i2m_insphere_filter_rows(const double ra[4], const double rb[4
   const double dacd = az * mcd - cz * mad + dz * mac;
   const double dabd = az * mbd - bz * mad + dz * mab;
   const double dabc = az * mbc - bz * mac + cz * mab;
-  const double det = (ra[3] * dbcd - rb[3] * dacd) + (rc[3] * dabd - rd[3] * dabc);
-  const double mx = i2m_pred_max4_(fabs(ax), fabs(bx), fabs(cx), fabs(dx));
-  const double my = i2m_pred_max4_(fabs(ay), fabs(by), fabs(cy), fabs(dy));
-  const double mz = i2m_pred_max4_(fabs(az), fabs(bz), fabs(cz), fabs(dz));
+  return (ra[3] * dbcd - rb[3] * dacd) + (rc[3] * dabd - rd[3] * dabc);
+}
+
+/** Error bound of i2m_insphere_det_rows for rows whose coordinates are at most mx, my, mz
+ *  in absolute value per axis: the permanent of Shewchuk's stage-A bound is at most
+ *  24 L mx my mz with L = mx^2 + my^2 + mz^2; 25 absorbs the rounding of every factor, so
+ *  the bound stays rigorous.  INFINITY (nothing certified) outside the checked ranges.
+ *  Any larger mx, my, mz give a valid (looser) bound, so one bound can serve every tet of a
+ *  cavity. */
+static inline double i2m_insphere_rows_bound(double mx, double my, double mz)
+{
   const double L = mx * mx + my * my + mz * mz;
   const double perm = 25.0 * L * mx * my * mz;
-  const double bound = I2M_ISP_BOUND * perm;
-  if ((fabs(det) > bound) & (perm >= I2M_ISP_PERM_MIN) & (L <= 0.25 * I2M_ISP_LIFT_MAX))
-    return (det > 0.0) - (det < 0.0);
+  return (perm >= I2M_ISP_PERM_MIN) & (L <= 0.25 * I2M_ISP_LIFT_MAX) ? I2M_ISP_BOUND * perm : (double)INFINITY;
+}
+
+/** Filter of insphere on translated, lifted rows (see i2m_insphere_det_rows): the sign
+ *  when certified by the semi-static bound of these four rows, else 0. */
+static inline int i2m_insphere_filter_rows(const double ra[4], const double rb[4], const double rc[4],
+                                           const double rd[4])
+{
+  const double det = i2m_insphere_det_rows(ra, rb, rc, rd);
+  const double mx = i2m_pred_max4_(fabs(ra[0]), fabs(rb[0]), fabs(rc[0]), fabs(rd[0]));
+  const double my = i2m_pred_max4_(fabs(ra[1]), fabs(rb[1]), fabs(rc[1]), fabs(rd[1]));
+  const double mz = i2m_pred_max4_(fabs(ra[2]), fabs(rb[2]), fabs(rc[2]), fabs(rd[2]));
+  if (fabs(det) > i2m_insphere_rows_bound(mx, my, mz)) return (det > 0.0) - (det < 0.0);
   return 0;
 }
 

@@ -54,7 +54,15 @@ static inline int64_t local_vertex(i2m_dt_ctx_t *ctx, uint32_t v, const double *
     ctx->nheld = k + 1;
   }
   ctx->rowstamp[k] = ctx->epoch;
-  i2m_insphere_row(i2m_dt_xyz(ctx->dt, v), p, ctx->rows + 4 * (size_t)k);
+  double *row = ctx->rows + 4 * (size_t)k;
+  i2m_insphere_row(i2m_dt_xyz(ctx->dt, v), p, row);
+  const double ax = fabs(row[0]), ay = fabs(row[1]), az = fabs(row[2]);
+  if ((ax > ctx->rmax[0]) | (ay > ctx->rmax[1]) | (az > ctx->rmax[2])) {
+    ctx->rmax[0] = ax > ctx->rmax[0] ? ax : ctx->rmax[0];
+    ctx->rmax[1] = ay > ctx->rmax[1] ? ay : ctx->rmax[1];
+    ctx->rmax[2] = az > ctx->rmax[2] ? az : ctx->rmax[2];
+    ctx->isp_bound = i2m_insphere_rows_bound(ctx->rmax[0], ctx->rmax[1], ctx->rmax[2]);
+  }
   return k;
 }
 
@@ -63,44 +71,58 @@ static inline uint32_t local_of(const i2m_dt_t *dt, uint32_t v)
   return atomic_load_explicit(&dt->vlock[v], memory_order_relaxed) >> I2M_DT_OWNER_BITS;
 }
 
-/* Conflict test of tet v[] (local indices l[]) against p from the cached rows; the exact
- * evaluation with the perturbation decides what the filter cannot. */
-static inline int conflict(const i2m_dt_ctx_t *ctx, const uint32_t *v, const uint32_t *l, const double *p,
-                           i2m_gidx_t gid)
+/* Conflict test of the tet whose vertices have local indices l[] (positively oriented when
+ * flip is 1, negatively when -1) against p, from the cached rows.  First against one bound
+ * for every row of this insertion, then against the tet's own bound (tighter when the
+ * cavity spans very different sizes); the exact evaluation with the perturbation decides
+ * what neither certifies (global vertex ids from ctx->held). */
+static inline int conflict(const i2m_dt_ctx_t *ctx, const uint32_t *l, int flip, const double *p, i2m_gidx_t gid)
 {
   const double *R = ctx->rows;
-  int s = i2m_insphere_filter_rows(R + 4 * l[0], R + 4 * l[1], R + 4 * l[2], R + 4 * l[3]);
-  if (I2M_LIKELY(s != 0)) return s;
+  const double *ra = R + 4 * l[0], *rb = R + 4 * l[1], *rc = R + 4 * l[2], *rd = R + 4 * l[3];
+  const double det = i2m_insphere_det_rows(ra, rb, rc, rd);
+  if (I2M_LIKELY(fabs(det) > ctx->isp_bound)) return flip * ((det > 0.0) - (det < 0.0));
+  int s = i2m_insphere_filter_rows(ra, rb, rc, rd);
+  if (s != 0) return flip * s;
   const i2m_dt_t *dt = ctx->dt;
-  return i2m_insphere_sos_exact(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]),
-                                i2m_dt_xyz(dt, v[3]), p, i2m_dt_gid(dt, v[0]), i2m_dt_gid(dt, v[1]),
-                                i2m_dt_gid(dt, v[2]), i2m_dt_gid(dt, v[3]), gid);
+  const uint32_t *H = ctx->held;
+  return flip * i2m_insphere_sos_exact(i2m_dt_xyz(dt, H[l[0]]), i2m_dt_xyz(dt, H[l[1]]), i2m_dt_xyz(dt, H[l[2]]),
+                                       i2m_dt_xyz(dt, H[l[3]]), p, i2m_dt_gid(dt, H[l[0]]), i2m_dt_gid(dt, H[l[1]]),
+                                       i2m_dt_gid(dt, H[l[2]]), i2m_dt_gid(dt, H[l[3]]), gid);
 }
 
 static inline bool row_is_zero(const i2m_dt_ctx_t *ctx, uint32_t l) { return ctx->rows[4 * (size_t)l + 3] == 0.0; }
 
-static i2m_dt_status_t cavity_push(i2m_dt_ctx_t *ctx, uint32_t t, const uint32_t *l)
+static I2M_NOINLINE i2m_dt_status_t cavity_grow(i2m_dt_ctx_t *ctx)
 {
-  if (I2M_UNLIKELY(ctx->ncav == ctx->cap_cav || ctx->ncav == ctx->cap_cavl)) {
-    uint32_t cap = ctx->ncav + ctx->ncav / 2 + 64;
-    if (i2m_realloc(cap, sizeof *ctx->cav, &ctx->cav) != I2M_OK ||
-        i2m_realloc(4 * (size_t)cap, sizeof *ctx->cavl, &ctx->cavl) != I2M_OK)
-      return I2M_DT_FULL;
-    ctx->cap_cav = ctx->cap_cavl = cap;
-  }
+  uint32_t cap = ctx->ncav + ctx->ncav / 2 + 64;
+  if (i2m_realloc(cap, sizeof *ctx->cav, &ctx->cav) != I2M_OK ||
+      i2m_realloc(4 * (size_t)cap, sizeof *ctx->cavl, &ctx->cavl) != I2M_OK)
+    return I2M_DT_FULL;
+  ctx->cap_cav = ctx->cap_cavl = cap;
+  return I2M_DT_OK;
+}
+
+static inline i2m_dt_status_t cavity_push(i2m_dt_ctx_t *ctx, uint32_t t, const uint32_t *l)
+{
+  if (I2M_UNLIKELY(ctx->ncav == ctx->cap_cav) && cavity_grow(ctx) != I2M_DT_OK) return I2M_DT_FULL;
   memcpy(ctx->cavl + 4 * (size_t)ctx->ncav, l, 4 * sizeof *l);
   ctx->cav[ctx->ncav++] = t;
   meta_store(ctx->dt, t, i2m_dt_meta(ctx->dt, t) | I2M_TM_MARK);
   return I2M_DT_OK;
 }
 
-static i2m_dt_status_t boundary_push(i2m_dt_ctx_t *ctx, uint32_t t, uint32_t i, uint32_t out, const uint32_t *l)
+static I2M_NOINLINE i2m_dt_status_t boundary_grow(i2m_dt_ctx_t *ctx)
 {
-  if (I2M_UNLIKELY(ctx->nbnd == ctx->cap_bnd)) {
-    uint32_t cap = ctx->cap_bnd + ctx->cap_bnd / 2 + 64;
-    if (i2m_realloc(cap, sizeof(i2m_dt_bface_t), &ctx->bnd) != I2M_OK) return I2M_DT_FULL;
-    ctx->cap_bnd = cap;
-  }
+  uint32_t cap = ctx->cap_bnd + ctx->cap_bnd / 2 + 64;
+  if (i2m_realloc(cap, sizeof(i2m_dt_bface_t), &ctx->bnd) != I2M_OK) return I2M_DT_FULL;
+  ctx->cap_bnd = cap;
+  return I2M_DT_OK;
+}
+
+static inline i2m_dt_status_t boundary_push(i2m_dt_ctx_t *ctx, uint32_t t, uint32_t i, uint32_t out, const uint32_t *l)
+{
+  if (I2M_UNLIKELY(ctx->nbnd == ctx->cap_bnd) && boundary_grow(ctx) != I2M_DT_OK) return I2M_DT_FULL;
   i2m_dt_bface_t *b = &ctx->bnd[ctx->nbnd++];
   b->t = t;
   b->i = i;
@@ -134,11 +156,16 @@ static i2m_dt_status_t cavity_search(i2m_dt_ctx_t *ctx, const double *p, i2m_gid
       const uint32_t *uv = tv + 4 * (size_t)u;
       int64_t lw = local_vertex(ctx, uv[j], p);
       if (lw < 0) return lw == -1 ? I2M_DT_ROLLBACK : I2M_DT_FULL;
-      uint32_t ul[4];
-      for (uint32_t s = 0; s < 4; s++) ul[s] = s == j ? (uint32_t)lw : local_of(dt, uv[s]);
-      if (conflict(ctx, uv, ul, p, gid) > 0) {
+      /* c with its vertex i replaced by u's apex is u, negatively oriented: no need to look
+       * up the local indices of u's other vertices unless u joins the cavity */
+      uint32_t fl[4];
+      memcpy(fl, cl, sizeof fl);
+      fl[i] = (uint32_t)lw;
+      if (conflict(ctx, fl, -1, p, gid) > 0) {
         if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
         if (row_is_zero(ctx, (uint32_t)lw)) return I2M_DT_DUPLICATE;
+        uint32_t ul[4];
+        for (uint32_t s = 0; s < 4; s++) ul[s] = s == j ? (uint32_t)lw : local_of(dt, uv[s]);
         if ((st = cavity_push(ctx, u, ul)) != I2M_DT_OK) return st;
       } else if ((st = boundary_push(ctx, c, i, n, cl)) != I2M_DT_OK) {
         return st;
@@ -253,6 +280,8 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
     ctx->epoch = 1;
   }
   ctx->ncav = ctx->nbnd = ctx->nnew = 0;
+  ctx->rmax[0] = ctx->rmax[1] = ctx->rmax[2] = 0.0;
+  ctx->isp_bound = (double)INFINITY;
   const uint32_t *sv = dt->tv + 4 * (size_t)seed;
   uint32_t v4[4], l4[4];
   memcpy(v4, sv, sizeof v4); /* threaded: read before the locks, verified below */
@@ -267,7 +296,7 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
   if (m & I2M_TM_FROZEN) return cavity_abandon(ctx, I2M_DT_FROZEN);
   for (int i = 0; i < 4; i++)
     if (row_is_zero(ctx, l4[i])) return cavity_abandon(ctx, I2M_DT_DUPLICATE);
-  if (conflict(ctx, v4, l4, p, gid) <= 0) return cavity_abandon(ctx, I2M_DT_NOT_IN_CONFLICT);
+  if (conflict(ctx, l4, 1, p, gid) <= 0) return cavity_abandon(ctx, I2M_DT_NOT_IN_CONFLICT);
   i2m_dt_status_t st = cavity_push(ctx, seed, l4);
   if (st == I2M_DT_OK) st = cavity_search(ctx, p, gid);
   if (st == I2M_DT_OK) st = cavity_fill(ctx, p, gid, kind, vout);

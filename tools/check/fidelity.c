@@ -359,6 +359,18 @@ static double pooled_quantile(const pooled_t *p, double q)
   return fmin(x, dmax);
 }
 
+/* Finishes one side's summary and hands its samples over to the pool (side 0: mesh to
+ * image, 1: image to mesh); *d and *w are then owned by the pool. */
+static void pooled_take(pooled_t *p, int side, float **d, float **w, int64_t ns, double sum, ck_dist_t *out)
+{
+  dist_summary(*d, ns, sum, out);
+  p->d[side] = *d;
+  p->w[side] = *w;
+  p->n[side] = ns;
+  *d = NULL;
+  *w = NULL;
+}
+
 static void pooled_free(pooled_t *p)
 {
   for (int s = 0; s < 2; s++) {
@@ -432,11 +444,7 @@ static i2m_err_t mesh_to_image(const tctx_t *tc, int64_t ntri, const grid_t *fg,
     i2m_image_grid_to_world(img, p, f->mesh_to_image.where);
   }
   f->mesh_samples = ns;
-  dist_summary(d, ns, sum, &f->mesh_to_image);
-  pool->d[0] = d;
-  pool->w[0] = w;
-  pool->n[0] = ns;
-  d = w = NULL;
+  pooled_take(pool, 0, &d, &w, ns, sum, &f->mesh_to_image);
 out:
   i2m_free(&off);
   i2m_free(&arg);
@@ -530,11 +538,7 @@ static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const grid_t *t
     i2m_image_grid_to_world(img, p[qm], f->image_to_mesh.where);
   }
   f->image_faces = nf;
-  dist_summary(d, ns, sum, &f->image_to_mesh);
-  pool->d[1] = d;
-  pool->w[1] = w;
-  pool->n[1] = ns;
-  d = w = NULL;
+  pooled_take(pool, 1, &d, &w, ns, sum, &f->image_to_mesh);
 fail:
   i2m_free(&d);
   i2m_free(&w);

@@ -28,14 +28,18 @@ typedef enum {
 #define I2M_MAX_LABELS 65535
 
 /** A label image.  Voxels hold label *indices* into label_value[]; index 0 is always the
- *  background value 0 (its count may be 0).  Other indices are in increasing value order. */
+ *  background value 0 (its count may be 0).  Other indices are in increasing value order.
+ *  An index is stored in one byte, vox[], plus a second plane vox_hi[] of high bytes that
+ *  exists only when some index exceeds 255: one byte per voxel for nearly every label map
+ *  (read indices with i2m_image_index()). */
 typedef struct i2m_image {
   int64_t n[3];            /**< voxels along i, j, k (each >= 1) */
   double spacing[3];       /**< voxel size along i, j, k in mm (> 0) */
   double origin[3];        /**< world (LPS) position of the centre of voxel (0,0,0) */
   double dir[3][3];        /**< dir[r][c]: world component r of index axis c; orthonormal */
   i2m_scalar_t file_type;  /**< voxel type found in the file */
-  uint16_t *vox;           /**< owned: [n2][n1][n0] label indices, i fastest */
+  uint8_t *vox;            /**< owned: [n2][n1][n0] low bytes of the label indices, i fastest */
+  uint8_t *vox_hi;         /**< owned: [n2][n1][n0] high bytes, or NULL when every index < 256 */
   int nlabels;             /**< number of label indices (>= 1, background included) */
   int64_t *label_value;    /**< owned: [nlabels] original label values; [0] = 0 */
   int64_t *label_count;    /**< owned: [nlabels] voxel counts */
@@ -81,6 +85,12 @@ void i2m_image_destroy(i2m_image_t **img);
 /** Name of a scalar type ("uint8", "int16", ...). */
 const char *i2m_scalar_name(i2m_scalar_t t);
 
+/** Label index of the voxel with linear index i ((k * n1 + j) * n0 + i). */
+static inline int i2m_image_index(const i2m_image_t *img, int64_t i)
+{
+  return img->vox_hi ? img->vox[i] | img->vox_hi[i] << 8 : img->vox[i];
+}
+
 /** Label index of a grid-frame point: the voxel that contains it, 0 outside the image. */
 static inline int i2m_image_label_at(const i2m_image_t *img, const double g[3])
 {
@@ -91,14 +101,14 @@ static inline int i2m_image_label_at(const i2m_image_t *img, const double g[3])
     idx[a] = (int64_t)u;
     if (idx[a] >= img->n[a]) return 0;
   }
-  return img->vox[(idx[2] * img->n[1] + idx[1]) * img->n[0] + idx[0]];
+  return i2m_image_index(img, (idx[2] * img->n[1] + idx[1]) * img->n[0] + idx[0]);
 }
 
 /** Label index of voxel (i,j,k); 0 outside the image. */
 static inline int i2m_image_label_voxel(const i2m_image_t *img, int64_t i, int64_t j, int64_t k)
 {
   if (i < 0 || j < 0 || k < 0 || i >= img->n[0] || j >= img->n[1] || k >= img->n[2]) return 0;
-  return img->vox[(k * img->n[1] + j) * img->n[0] + i];
+  return i2m_image_index(img, (k * img->n[1] + j) * img->n[0] + i);
 }
 
 /** Grid frame -> world (LPS). */
@@ -121,6 +131,9 @@ static inline int i2m_image_label_at_world(const i2m_image_t *img, const double 
 
 /** World bounding box of the image block (outer voxel faces). */
 void i2m_image_world_bounds(const i2m_image_t *img, double lo[3], double hi[3]);
+/** World bounding box of the voxels first..last (inclusive, outer voxel faces). */
+void i2m_image_world_bounds_of(const i2m_image_t *img, const int64_t first[3], const int64_t last[3], double lo[3],
+                               double hi[3]);
 /** Determinant sign of dir (+1 or -1): -1 means the grid->world map flips orientation, so
  *  writers swap two vertices of every tetrahedron to keep positive volumes. */
 int i2m_image_handedness(const i2m_image_t *img);

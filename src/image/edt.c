@@ -28,10 +28,10 @@ static void boundary_box(const i2m_image_t *img, int64_t lo[3], int64_t hi[3])
   }
   for (int64_t k = 0; k < img->n[2]; k++)
     for (int64_t j = 0; j < img->n[1]; j++) {
-      const uint16_t *row = img->vox + (k * img->n[1] + j) * img->n[0];
+      const int64_t row = (k * img->n[1] + j) * img->n[0];
       int64_t first = -1, last = -1;
       for (int64_t i = 0; i < img->n[0]; i++)
-        if (row[i]) {
+        if (i2m_image_index(img, row + i)) {
           if (first < 0) first = i;
           last = i;
         }
@@ -240,7 +240,7 @@ static double closest_on_voxel_faces(const i2m_image_t *img, const int64_t b[3],
   const int64_t stride[3] = {1, n0, n0 * n1};
   const int64_t base = (b[2] * n1 + b[1]) * n0 + b[0];
   const bool interior = b[0] > 0 && b[1] > 0 && b[2] > 0 && b[0] < n0 - 1 && b[1] < n1 - 1 && b[2] < img->n[2] - 1;
-  const int lb = img->vox[base];
+  const int lb = i2m_image_index(img, base);
   double best = INFINITY, c[3], h[3], q0[3];
   for (int a = 0; a < 3; a++) {
     c[a] = (double)b[a] * img->spacing[a];
@@ -251,7 +251,7 @@ static double closest_on_voxel_faces(const i2m_image_t *img, const int64_t b[3],
   for (int ax = 0; ax < 3; ax++)
     for (int dir = -1; dir <= 1; dir += 2) {
       int ln;
-      if (interior) ln = img->vox[base + dir * stride[ax]];
+      if (interior) ln = i2m_image_index(img, base + dir * stride[ax]);
       else {
         int64_t n[3] = {b[0], b[1], b[2]};
         n[ax] += dir;

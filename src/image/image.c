@@ -13,12 +13,21 @@ const char *i2m_scalar_name(i2m_scalar_t t)
   return (unsigned)t < sizeof names / sizeof names[0] ? names[t] : "unknown";
 }
 
-void i2m_image_release_voxels(i2m_image_t *img) { i2m_free(&img->vox); }
+void i2m_image_release_voxels(i2m_image_t *img)
+{
+  i2m_free(&img->vox);
+  i2m_free(&img->vox_hi);
+}
+
+i2m_err_t image_add_high_plane(i2m_image_t *img)
+{
+  return i2m_calloc((size_t)(img->n[0] * img->n[1] * img->n[2]), 1, &img->vox_hi);
+}
 
 void i2m_image_destroy(i2m_image_t **img)
 {
   if (!img || !*img) return;
-  i2m_free(&(*img)->vox);
+  i2m_image_release_voxels(*img);
   i2m_free(&(*img)->label_value);
   i2m_free(&(*img)->label_count);
   i2m_free(&(*img)->path);
@@ -39,7 +48,7 @@ i2m_err_t image_alloc(const char *path, const int64_t n[3], i2m_image_t **out)
   size_t len = strlen(path) + 1;
   i2m_err_t err = i2m_malloc(len, 1, &img->path);
   if (err == I2M_OK) memcpy(img->path, path, len);
-  if (err == I2M_OK) err = i2m_malloc((size_t)(n[0] * n[1] * n[2]), sizeof(uint16_t), &img->vox);
+  if (err == I2M_OK) err = i2m_malloc((size_t)(n[0] * n[1] * n[2]), sizeof *img->vox, &img->vox);
   if (err != I2M_OK) {
     i2m_image_destroy(&img);
     return err;
@@ -143,7 +152,7 @@ i2m_err_t i2m_image_create_from_values(const int64_t n[3], const double spacing[
   }
   for (size_t i = 0; i < nvox; i++) {
     uint16_t li = values[i] == 0 ? 0 : m.idx[map_slot(&m, values[i])];
-    img->vox[i] = li;
+    I2M_CALL_GOTO(err, done, image_store_index(img, (int64_t)i, li));
     img->label_count[li]++;
   }
   *out = img;
@@ -163,7 +172,8 @@ void i2m_image_grid_to_world(const i2m_image_t *img, const double g[3], double w
     w[r] = img->origin[r] + img->dir[r][0] * g[0] + img->dir[r][1] * g[1] + img->dir[r][2] * g[2];
 }
 
-void i2m_image_world_bounds(const i2m_image_t *img, double lo[3], double hi[3])
+void i2m_image_world_bounds_of(const i2m_image_t *img, const int64_t first[3], const int64_t last[3], double lo[3],
+                               double hi[3])
 {
   for (int a = 0; a < 3; a++) {
     lo[a] = INFINITY;
@@ -171,13 +181,22 @@ void i2m_image_world_bounds(const i2m_image_t *img, double lo[3], double hi[3])
   }
   for (int c = 0; c < 8; c++) { /* corners of the voxel block (outer faces) */
     double g[3], w[3];
-    for (int a = 0; a < 3; a++) g[a] = (((c >> a) & 1) ? (double)img->n[a] - 0.5 : -0.5) * img->spacing[a];
+    for (int a = 0; a < 3; a++) {
+      bool top = (c >> a) & 1;
+      g[a] = (top ? (double)last[a] + 0.5 : (double)first[a] - 0.5) * img->spacing[a];
+    }
     i2m_image_grid_to_world(img, g, w);
     for (int a = 0; a < 3; a++) {
       lo[a] = fmin(lo[a], w[a]);
       hi[a] = fmax(hi[a], w[a]);
     }
   }
+}
+
+void i2m_image_world_bounds(const i2m_image_t *img, double lo[3], double hi[3])
+{
+  const int64_t first[3] = {0, 0, 0}, last[3] = {img->n[0] - 1, img->n[1] - 1, img->n[2] - 1};
+  i2m_image_world_bounds_of(img, first, last, lo, hi);
 }
 
 int i2m_image_handedness(const i2m_image_t *img)

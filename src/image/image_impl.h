@@ -10,9 +10,21 @@
 #include <stdio.h>
 #include <zlib.h>
 
-/** Allocates an image of n voxels with identity geometry and uninitialised vox[];
- *  copies @p path for messages. */
+/** Allocates an image of n voxels with identity geometry and uninitialised vox[] (no
+ *  vox_hi[] yet); copies @p path for messages. */
 i2m_err_t image_alloc(const char *path, const int64_t n[3], i2m_image_t **out);
+
+/** Creates the plane of high bytes (zero) when the first index above 255 comes. */
+i2m_err_t image_add_high_plane(i2m_image_t *img);
+
+/** Stores label index idx at voxel i. */
+static inline i2m_err_t image_store_index(i2m_image_t *img, int64_t i, unsigned idx)
+{
+  img->vox[i] = (uint8_t)idx;
+  if (I2M_UNLIKELY(idx > 255u) && !img->vox_hi) I2M_CALL(image_add_high_plane(img));
+  if (img->vox_hi) img->vox_hi[i] = (uint8_t)(idx >> 8);
+  return I2M_OK;
+}
 
 /* ---- byte stream (read_stream.c) ------------------------------------------------------- */
 

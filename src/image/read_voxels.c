@@ -139,12 +139,12 @@ static i2m_err_t learn_small(conv_t *c, uint32_t bits, int64_t voxel, uint16_t *
 
 static i2m_err_t conv_8(conv_t *c, const unsigned char *p, size_t k)
 {
-  uint16_t *vox = c->img->vox + c->next, *tab = c->table;
+  uint16_t *tab = c->table;
   int64_t *cnt = c->count;
   for (size_t i = 0; i < k; i++) {
     uint16_t t = tab[p[i]];
     if (I2M_UNLIKELY(t == NO_INDEX)) I2M_CALL(learn_small(c, p[i], c->next + (int64_t)i, &t));
-    vox[i] = t;
+    I2M_CALL(image_store_index(c->img, c->next + (int64_t)i, t));
     cnt[t]++;
   }
   return I2M_OK;
@@ -152,14 +152,14 @@ static i2m_err_t conv_8(conv_t *c, const unsigned char *p, size_t k)
 
 static i2m_err_t conv_16(conv_t *c, const unsigned char *p, size_t k)
 {
-  uint16_t *vox = c->img->vox + c->next, *tab = c->table;
+  uint16_t *tab = c->table;
   int64_t *cnt = c->count;
   int hi = c->vf->big_endian ? 0 : 1;
   for (size_t i = 0; i < k; i++) {
     uint32_t bits = (uint32_t)p[2 * i + hi] << 8 | p[2 * i + (1 - hi)];
     uint16_t t = tab[bits];
     if (I2M_UNLIKELY(t == NO_INDEX)) I2M_CALL(learn_small(c, bits, c->next + (int64_t)i, &t));
-    vox[i] = t;
+    I2M_CALL(image_store_index(c->img, c->next + (int64_t)i, t));
     cnt[t]++;
   }
   return I2M_OK;
@@ -210,7 +210,7 @@ static i2m_err_t conv_wide(conv_t *c, const unsigned char *p, size_t k)
       I2M_CALL(index_of(c, v, &c->last_idx));
       c->last_value = v;
     }
-    c->img->vox[voxel] = c->last_idx;
+    I2M_CALL(image_store_index(c->img, voxel, c->last_idx));
     c->count[c->last_idx]++;
   }
   return I2M_OK;
@@ -256,8 +256,8 @@ static i2m_err_t finish_labels(conv_t *c)
   i2m_free(&pairs);
   if (err == I2M_OK && !identity) {
     int64_t nvox = img->n[0] * img->n[1] * img->n[2];
-    uint16_t *vox = img->vox;
-    for (int64_t i = 0; i < nvox; i++) vox[i] = remap[vox[i]];
+    if (img->nlabels > 256 && !img->vox_hi) err = image_add_high_plane(img);
+    for (int64_t i = 0; err == I2M_OK && i < nvox; i++) err = image_store_index(img, i, remap[i2m_image_index(img, i)]);
   }
   i2m_free(&remap);
   return err;

@@ -110,8 +110,15 @@ i2m_err_t i2m_refine_create(const i2m_image_t *img, const i2m_edt_t *edt, const 
     hi[a] += ext;
   }
   I2M_CALL_GOTO(err, fail, i2m_dt_create(lo, hi, 1 << 12, sizeof(tet_info_t), &r->dt));
-  double ilo[3], ihi[3]; /* the image block, where surface points and their neighbours lie */
-  i2m_image_world_bounds(img, ilo, ihi);
+  /* the grids cover the labelled block (the transform's box K), where surface points and
+   * their neighbours lie; anything outside falls into the border cells */
+  double ilo[3], ihi[3];
+  if (edt->nboundary > 0) {
+    const int64_t last[3] = {edt->lo[0] + edt->m[0] - 1, edt->lo[1] + edt->m[1] - 1, edt->lo[2] + edt->m[2] - 1};
+    i2m_image_world_bounds_of(img, edt->lo, last, ilo, ihi);
+  } else {
+    i2m_image_world_bounds(img, ilo, ihi);
+  }
   I2M_CALL_GOTO(err, fail, vgrid_init(&r->surf, ilo, ihi, 2.0 * r->p.delta));
   I2M_CALL_GOTO(err, fail, vgrid_init(&r->freev, ilo, ihi, 4.0 * r->p.delta));
   r->nworkers = 1;
@@ -194,8 +201,15 @@ i2m_err_t i2m_refine_set_workers(i2m_refine_t *r, int n)
   /* the old worker 0's lists, statistics and progress carry over */
   i2m_refine_worker_t *old = &r->workers[0];
   for (int l = 0; l < NLEVELS; l++) {
+    badlist_free(&w[0].q[l]);
     w[0].q[l] = old->q[l];
-    old->q[l] = (badlist_t){NULL, 0, 0};
+    old->q[l] = (badlist_t){0};
+    i2m_err_t err = badlist_set_wide(&w[0].q[l], r->dt, n > 1);
+    if (err != I2M_OK) {
+      for (int j = 0; j < n; j++) worker_free(&w[j]);
+      i2m_free(&w);
+      return err;
+    }
   }
   w[0].pend = old->pend;
   w[0].npend = old->npend;
@@ -244,10 +258,12 @@ size_t i2m_refine_give(i2m_refine_t *r, int from, int to)
     badlist_t *q = &a->q[l];
     size_t half = q->n / 2;
     if (half == 0) continue;
-    for (size_t i = 0; i < half; i++)
-      if (worker_push_entry(b, l, &q->e[i]) != I2M_OK) return moved;
-    memmove(q->e, q->e + half, (q->n - half) * sizeof *q->e);
-    q->n -= half;
+    for (size_t i = 0; i < half; i++) {
+      bad_t e;
+      badlist_get(q, r->dt, i, &e);
+      if (worker_push_entry(b, l, &e) != I2M_OK) return moved;
+    }
+    badlist_drop_bottom(q, half);
     moved += half;
   }
   return moved;
@@ -281,10 +297,10 @@ i2m_err_t i2m_refine_spread(i2m_refine_t *r)
   size_t m = 0;
   for (int l = 0; l < NLEVELS; l++) {
     for (size_t i = 0; i < w0->q[l].n; i++) {
-      const bad_t *b = &w0->q[l].e[i];
+      bad_t *b = &all[m].b;
+      badlist_get(&w0->q[l], r->dt, i, b);
       all[m].key = i2m_dt_xyz(r->dt, b->v[0])[ax];
-      all[m].level = l;
-      all[m++].b = *b;
+      all[m++].level = l;
     }
     w0->q[l].n = 0;
   }

@@ -32,9 +32,14 @@ typedef struct {
   uint32_t v[4];
 } bad_t;
 
+/** A stack of bad elements.  The vertices are stored only when several threads share the
+ *  mesh (wide lists): alone, a worker reads them from the mesh when it pops the element,
+ *  and an entry takes 8 bytes instead of 24. */
 typedef struct {
-  bad_t *e;
+  uint32_t (*e)[2];    /* owned: [cap] t, meta */
+  uint32_t (*v)[4];    /* owned: [cap] vertices (wide lists), else NULL */
   size_t n, cap;
+  bool wide;
 } badlist_t;
 
 /** Priority levels: surface rules, R2, volume rules. */
@@ -138,6 +143,21 @@ bool vgrid_has_within(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], d
 /** Appends the vertices closer than rad to z, with their global ids, to (*out)[*n ...]. */
 i2m_err_t vgrid_collect_within(const vgrid_t *g, const i2m_dt_t *dt, const double z[3], double rad,
                                pending_t **out, uint32_t *n, uint32_t *cap);
+
+/* badlist.c */
+i2m_err_t badlist_push(badlist_t *q, const i2m_dt_t *dt, const bad_t *b);
+/** Entry i (vertices from the list, or from the mesh for a narrow list). */
+void badlist_get(const badlist_t *q, const i2m_dt_t *dt, size_t i, bad_t *b);
+/** Takes the top entry (the list must not be empty). */
+bad_t badlist_pop(badlist_t *q, const i2m_dt_t *dt);
+/** Puts b (just popped: its slot is still allocated) at the bottom; the bottom entry moves
+ *  to the top. */
+void badlist_requeue_bottom(badlist_t *q, const bad_t *b);
+/** Removes the k bottom entries. */
+void badlist_drop_bottom(badlist_t *q, size_t k);
+/** Makes the list wide or narrow (no other thread may use the mesh meanwhile). */
+i2m_err_t badlist_set_wide(badlist_t *q, const i2m_dt_t *dt, bool wide);
+void badlist_free(badlist_t *q);
 
 /* worker.c */
 i2m_err_t worker_init(i2m_refine_worker_t *w, i2m_refine_t *r, uint32_t owner, bool locking);

@@ -14,6 +14,7 @@ i2m_err_t worker_init(i2m_refine_worker_t *w, i2m_refine_t *r, uint32_t owner, b
   memset(w, 0, sizeof *w);
   w->r = r;
   I2M_CALL(i2m_dt_ctx_init(&w->ctx, r->dt, owner, locking));
+  for (int l = 0; l < NLEVELS; l++) w->q[l].wide = locking;
   i2m_progress_begin(&w->progress, "refinement", "tets");
   return I2M_OK;
 }
@@ -21,36 +22,16 @@ i2m_err_t worker_init(i2m_refine_worker_t *w, i2m_refine_t *r, uint32_t owner, b
 void worker_free(i2m_refine_worker_t *w)
 {
   i2m_dt_ctx_free(&w->ctx);
-  for (int l = 0; l < NLEVELS; l++) i2m_free(&w->q[l].e);
+  for (int l = 0; l < NLEVELS; l++) badlist_free(&w->q[l]);
   i2m_free(&w->pend);
   i2m_free(&w->created);
   i2m_free(&w->geom);
   memset(w, 0, sizeof *w);
 }
 
-/* Drops the entries of tets that are gone (their generation moved on).  The mark bit is
- * masked: another thread may mark a live tet for a moment, its entry must stay. */
-static void compact_list(const i2m_dt_t *dt, badlist_t *q)
-{
-  size_t k = 0;
-  for (size_t i = 0; i < q->n; i++)
-    if ((i2m_dt_meta(dt, q->e[i].t) & ~I2M_TM_MARK) == q->e[i].meta) q->e[k++] = q->e[i];
-  q->n = k;
-}
-
 i2m_err_t worker_push_entry(i2m_refine_worker_t *w, int level, const bad_t *b)
 {
-  badlist_t *q = &w->q[level];
-  if (q->n == q->cap) {
-    if (q->cap >= 4096) compact_list(w->r->dt, q); /* before growing: most may be stale */
-    if (q->n + q->cap / 4 >= q->cap) {
-      size_t cap = q->cap ? 2 * q->cap : 1024;
-      I2M_CALL(i2m_realloc(cap, sizeof *q->e, &q->e));
-      q->cap = cap;
-    }
-  }
-  q->e[q->n++] = *b;
-  return I2M_OK;
+  return badlist_push(&w->q[level], w->r->dt, b);
 }
 
 /* Classifies tet t (its vertices locked, or a sequential run) and queues it if it is bad. */
@@ -103,15 +84,6 @@ static i2m_err_t keep_created(i2m_refine_worker_t *w)
 }
 
 static int64_t live_tets(const i2m_refine_worker_t *w) { return w->ctx.n_created - w->ctx.n_killed; }
-
-/* Puts an element back at the bottom of its list: after a rollback the thread first works
- * elsewhere, away from the thread that holds the lock. */
-static void requeue_bottom(badlist_t *q, const bad_t *b)
-{
-  q->e[q->n] = q->e[0]; /* the slot it was popped from is still allocated */
-  q->e[0] = *b;
-  q->n++;
-}
 
 static void pend_bottom(i2m_refine_worker_t *w, pending_t pv)
 {
@@ -217,9 +189,9 @@ int worker_step(i2m_refine_worker_t *w)
   int level = 0;
   while (level < NLEVELS && w->q[level].n == 0) level++;
   if (level == NLEVELS) return I2M_STEP_IDLE;
-  bad_t b = w->q[level].e[--w->q[level].n];
+  bad_t b = badlist_pop(&w->q[level], dt);
   if (!i2m_dt_lock_tet(&w->ctx, b.v)) {
-    requeue_bottom(&w->q[level], &b);
+    badlist_requeue_bottom(&w->q[level], &b);
     return retry_later(w, I2M_DT_ROLLBACK);
   }
   if (i2m_dt_meta(dt, b.t) != b.meta) { /* stale: the tet is gone */
@@ -237,7 +209,7 @@ int worker_step(i2m_refine_worker_t *w)
     }
     i2m_dt_status_t st = insert_action(w, &a, &v);
     if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) {
-      requeue_bottom(&w->q[level], &b);
+      badlist_requeue_bottom(&w->q[level], &b);
       return retry_later(w, st);
     }
     if (st == I2M_DT_OK) break;
@@ -246,7 +218,7 @@ int worker_step(i2m_refine_worker_t *w)
     skip |= a.rule >= 2 && a.rule <= 4 ? (1u << 2 | 1u << 3 | 1u << 4) : 1u << a.rule;
     /* the failed attempt released every lock: take the tet's again */
     if (!i2m_dt_lock_tet(&w->ctx, b.v)) {
-      requeue_bottom(&w->q[level], &b);
+      badlist_requeue_bottom(&w->q[level], &b);
       return retry_later(w, I2M_DT_ROLLBACK);
     }
     if (i2m_dt_meta(dt, b.t) != b.meta) {

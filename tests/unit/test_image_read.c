@@ -141,7 +141,7 @@ static void check_labels(const i2m_image_t *img)
   CU_ASSERT(total == nvox);
   int64_t bad = 0;
   for (int64_t i = 0; i < nvox; i++) {
-    if (img->vox[i] < img->nlabels) hist[img->vox[i]]++;
+    if (i2m_image_index(img, i) < img->nlabels) hist[i2m_image_index(img, i)]++;
     else bad++;
   }
   CU_ASSERT(bad == 0);
@@ -166,6 +166,7 @@ static void test_real_images(void)
     CU_ASSERT(img->file_type == e->type);
     check_geometry(img, e->spacing, e->origin, e->dir, 1e-9);
     check_labels(img);
+    CU_ASSERT((img->vox_hi == NULL) == (img->nlabels <= 256)); /* one byte per voxel */
     snprintf(path, sizeof path, "%s/%s", test_data_dir(), e->json);
     int n = read_label_counts(path, value, count, 256);
     CU_ASSERT_FATAL(n > 0);
@@ -226,7 +227,7 @@ static void check_read_back(const char *path, const wimg_image_t *im, i2m_scalar
   check_geometry(img, im->spacing, im->origin, im->dir, tol);
   check_labels(img);
   int64_t nvox = im->n[0] * im->n[1] * im->n[2], bad = 0;
-  for (int64_t i = 0; i < nvox; i++) bad += img->label_value[img->vox[i]] != im->values[i];
+  for (int64_t i = 0; i < nvox; i++) bad += img->label_value[i2m_image_index(img, i)] != im->values[i];
   CU_ASSERT(bad == 0);
   if (bad) printf("\n  %s: %lld voxels differ\n", path, (long long)bad);
   i2m_image_destroy(&img);
@@ -338,7 +339,7 @@ static void test_nrrd_skips(void)
   CU_ASSERT_FATAL(err == I2M_OK);
   CU_ASSERT(img->nlabels == 3 && img->label_value[1] == 5 && img->label_value[2] == 9);
   CU_ASSERT(img->label_count[0] == 4 && img->label_count[1] == 3 && img->label_count[2] == 1);
-  CU_ASSERT(img->vox[1] == 1 && img->vox[4] == 2 && img->spacing[1] == 3);
+  CU_ASSERT(i2m_image_index(img, 1) == 1 && i2m_image_index(img, 4) == 2 && img->spacing[1] == 3);
   i2m_image_destroy(&img);
   remove(tmp_path("skips.dat"));
   remove(hdr);
@@ -405,7 +406,7 @@ static void test_metaimage_matrix(void)
   check_geometry(img, sp, o, dir, 0);
   CU_ASSERT(img->file_type == I2M_SCALAR_INT32 && img->nlabels == 3);
   CU_ASSERT(img->label_value[1] == -2 && img->label_value[2] == 256 && img->label_count[0] == 0);
-  CU_ASSERT(img->vox[0] == 2 && img->vox[1] == 1);
+  CU_ASSERT(i2m_image_index(img, 0) == 2 && i2m_image_index(img, 1) == 1);
   i2m_image_destroy(&img);
   remove(path);
 }
@@ -454,6 +455,17 @@ static void test_label_limit(void)
   CU_ASSERT(strstr(i2m_error_message(), "distinct label values") != NULL);
   tmp_remove(path);
   free(vals);
+}
+
+/* 256 non-zero values and no 0: first-seen indices fit in a byte, the final ones (0 is
+ * index 0) do not, so the high plane appears only when the indices are renumbered. */
+static void test_label_high_plane(void)
+{
+  int64_t vals[256];
+  for (int i = 0; i < 256; i++) vals[i] = 1000 - i;
+  wimg_image_t im = {{16, 16, 1}, {1, 1, 1}, {0, 0, 0}, {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, vals};
+  wimg_opts_t o = {.type = I2M_SCALAR_UINT16};
+  round_trip("high.nrrd", &im, &o, 0);
 }
 
 /* ---- error paths: one message naming the file and the problem, no image ---- */
@@ -593,6 +605,7 @@ static const test_case_t cases[] = {
     {"MetaImage: TransformMatrix order, aliases", test_metaimage_matrix},
     {"geometry: orthonormalise, refuse shear", test_orthonormalise},
     {"labels: 65535 indices at most", test_label_limit},
+    {"labels: index 256 after renumbering", test_label_high_plane},
     {"errors: truncated, corrupt, lying, non-3-D data", test_errors_data},
     {"errors: bad headers and files", test_errors_headers},
     {"scratch directory left empty", test_cleanup},

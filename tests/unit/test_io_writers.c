@@ -108,7 +108,7 @@ static i2m_tetmesh_t *voxel_mesh(const i2m_image_t *img, int64_t drop, const dou
   const int64_t *n = img->n, c0 = n[0] + 1, c1 = n[1] + 1;
   int64_t ncorner = c0 * c1 * (n[2] + 1), nvox = 0;
   for (int64_t v = 0; v < n[0] * n[1] * n[2]; v++) {
-    int64_t val = img->label_value[img->vox[v]];
+    int64_t val = img->label_value[i2m_image_index(img, v)];
     nvox += val != 0 && val != drop;
   }
   int32_t *map = malloc((size_t)ncorner * sizeof *map);

@@ -588,9 +588,10 @@ static i2m_err_t image_components(const i2m_image_t *img, runs_t *r)
   I2M_CALL(i2m_malloc((size_t)nrows + 1, sizeof *r->row, &r->row));
   int64_t cnt = 0;
   for (int64_t row = 0; row < nrows; row++) {
-    const uint16_t *v = img->vox + row * n0;
+    const int64_t v = row * n0;
     r->row[row] = cnt;
-    for (int64_t i = 0; i < n0; i++) cnt += i == 0 || v[i] != v[i - 1];
+    for (int64_t i = 1; i < n0; i++) cnt += i2m_image_index(img, v + i) != i2m_image_index(img, v + i - 1);
+    cnt++; /* the run that starts the row */
   }
   r->row[nrows] = cnt;
   r->nruns = cnt;
@@ -601,12 +602,13 @@ static i2m_err_t image_components(const i2m_image_t *img, runs_t *r)
   I2M_CALL(i2m_calloc((size_t)cnt, sizeof *r->size, &r->size));
   cnt = 0;
   for (int64_t row = 0; row < nrows; row++) {
-    const uint16_t *v = img->vox + row * n0;
+    const int64_t v = row * n0;
     for (int64_t i = 0; i < n0; i++) {
-      if (i == 0 || v[i] != v[i - 1]) {
+      int lab = i2m_image_index(img, v + i);
+      if (i == 0 || lab != i2m_image_index(img, v + i - 1)) {
         r->x0[cnt] = (int32_t)i;
         r->len[cnt] = 0;
-        r->lab[cnt] = v[i];
+        r->lab[cnt] = (uint16_t)lab;
         r->par[cnt] = cnt;
         cnt++;
       }

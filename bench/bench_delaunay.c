@@ -56,6 +56,7 @@ static int run(long long n, result_t *r)
 int main(int argc, char **argv)
 {
   const char *json = NULL;
+  i2m_malloc_tune();
   if (getenv("I2M_DEBUG")) i2m_log_set_level(I2M_LOG_DEBUG);
   long long ns[8];
   int nn = 0;

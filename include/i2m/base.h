@@ -105,6 +105,9 @@ i2m_err_t i2m_malloc(size_t n, size_t size, void *out);
 i2m_err_t i2m_calloc(size_t n, size_t size, void *out);
 /** *ptr = realloc(*ptr, n * size); on failure *ptr is left valid. */
 i2m_err_t i2m_realloc(size_t n, size_t size, void *ptr);
+/** Programs call this first: large arrays get their own mappings (glibc; no-op elsewhere),
+ *  so that growing and freeing them changes the resident memory as expected. */
+void i2m_malloc_tune(void);
 /** free(*ptr); *ptr = NULL.  Accepts NULL. */
 void i2m_free(void *ptr);
 

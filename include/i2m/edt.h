@@ -9,7 +9,13 @@
  * transform gives, for every voxel of the box K = (bounding box of the boundary voxels),
  * the nearest boundary voxel centre; for a point outside K the closest point is found
  * from its projection on K, exactly: K is convex and holds every interface, so
- * d(p)^2 = dist(p, K)^2 + d(proj_K p)^2.  All points are in the grid frame (image.h). */
+ * d(p)^2 = dist(p, K)^2 + d(proj_K p)^2.  All points are in the grid frame (image.h).
+ *
+ * The transform also answers label queries.  K holds every foreground voxel, so outside K
+ * the label is 0; inside, when the feature index and the label index fit together in 32
+ * bits (nearly always), each voxel's word carries its label index in the high bits, and the
+ * image's own voxels may be released: the mesher then holds 4 bytes per voxel of K instead
+ * of 5 per voxel of the image. */
 #ifndef I2M_EDT_H
 #define I2M_EDT_H
 
@@ -25,9 +31,48 @@ typedef struct i2m_edt {
   double inv_m[3];         /**< 1 / m (index arithmetic without divisions) */
   double inv_spacing[3];   /**< 1 / spacing */
   int32_t *ft;             /**< owned: [m2][m1][m0] box-linear index of the nearest boundary
-                                voxel, or -1 when the image has no interface */
+                                voxel (the bits of feat_mask) and, when labels_packed, the
+                                voxel's label index above them (read with the accessors) */
   int64_t nboundary;       /**< number of boundary voxels */
+  uint32_t feat_mask;      /**< bits of a word that hold the feature index */
+  int label_shift;         /**< position of the label index in a word (labels_packed) */
+  bool labels_packed;      /**< label queries need no image voxels */
 } i2m_edt_t;
+
+/** Box-linear index of the nearest boundary voxel of box voxel idx. */
+static inline uint32_t i2m_edt_feature(const i2m_edt_t *e, int64_t idx) { return (uint32_t)e->ft[idx] & e->feat_mask; }
+
+/** Label index of voxel (i,j,k) (0 outside the image), from the packed words or the image. */
+static inline int i2m_edt_label_voxel(const i2m_edt_t *e, int64_t i, int64_t j, int64_t k)
+{
+  if (!e->labels_packed) return i2m_image_label_voxel(e->img, i, j, k);
+  i -= e->lo[0];
+  j -= e->lo[1];
+  k -= e->lo[2];
+  if (i < 0 || j < 0 || k < 0 || i >= e->m[0] || j >= e->m[1] || k >= e->m[2]) return 0; /* outside K */
+  return (int)((uint32_t)e->ft[(k * e->m[1] + j) * e->m[0] + i] >> e->label_shift);
+}
+
+/** Label index of a grid-frame point (the voxel that contains it; 0 outside the image). */
+static inline int i2m_edt_label_at(const i2m_edt_t *e, const double g[3])
+{
+  if (!e->labels_packed) return i2m_image_label_at(e->img, g);
+  int64_t idx[3];
+  for (int a = 0; a < 3; a++) {
+    double u = g[a] / e->img->spacing[a] + 0.5; /* as i2m_image_label_at */
+    if (!(u >= 0.0) || u >= (double)e->img->n[a]) return 0; /* also rejects NaN */
+    idx[a] = (int64_t)u;
+  }
+  return i2m_edt_label_voxel(e, idx[0], idx[1], idx[2]);
+}
+
+/** Label index of a world point. */
+static inline int i2m_edt_label_at_world(const i2m_edt_t *e, const double w[3])
+{
+  double g[3];
+  i2m_image_world_to_grid(e->img, w, g);
+  return i2m_edt_label_at(e, g);
+}
 
 /** Computes the feature transform of @p img (OpenMP-parallel over scanlines).  An image
  *  without any interface gives a transform with nboundary = 0.  Not collective. */
@@ -47,7 +92,7 @@ double i2m_edt_closest_world(const i2m_edt_t *e, const double p[3], double max_d
 /** Along the segment a -> b (world coordinates) whose end labels differ, a point where the
  *  label changes from a's, to within @p tol: returns it in x and the labels on its two
  *  sides.  Thread safe. */
-void i2m_edt_bisect(const i2m_image_t *img, const double a[3], const double b[3], double tol, double x[3],
+void i2m_edt_bisect(const i2m_edt_t *e, const double a[3], const double b[3], double tol, double x[3],
                     int *label_a, int *label_b);
 
 #ifdef __cplusplus

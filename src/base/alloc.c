@@ -3,6 +3,20 @@
 
 #include <stdlib.h>
 #include <string.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
+void i2m_malloc_tune(void)
+{
+#if defined(__GLIBC__)
+  /* glibc raises its mmap threshold to the size of every large block freed (up to 32 MB), after
+   * which the mesh's growing arrays live in the heap: a realloc copies them (old and new
+   * resident together) and freed memory stays resident.  A fixed threshold keeps every large
+   * array in its own mapping, grown by mremap and returned on free. */
+  mallopt(M_MMAP_THRESHOLD, 1 << 20);
+#endif
+}
 
 static int mul_overflows(size_t n, size_t size) { return size != 0 && n > SIZE_MAX / size; }
 

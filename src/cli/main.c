@@ -46,6 +46,7 @@ static i2m_err_t run_mesher(run_t *r)
 
   phase_begin(r, "distance transform");
   I2M_CALL(i2m_edt_create(r->img, &r->edt));
+  if (r->edt->labels_packed) i2m_image_release_voxels(r->img); /* the transform answers label queries */
   phase_end(r, I2M_PHASE_EDT);
 
   phase_begin(r, "refinement");
@@ -112,6 +113,7 @@ static void run_free(run_t *r)
 int main(int argc, char **argv)
 {
   run_t r;
+  i2m_malloc_tune();
   memset(&r, 0, sizeof r);
   r.t0 = i2m_wtime();
   if (cli_parse(argc, argv, &r.opt) != I2M_OK) {

@@ -178,12 +178,40 @@ static i2m_err_t edt_pass(i2m_edt_t *e, int ax)
   return I2M_OK;
 }
 
+static int bits_for(uint64_t maxval)
+{
+  int b = 0;
+  while (b < 64 && (maxval >> b) != 0) b++;
+  return b;
+}
+
+/* Puts each voxel's label index above its feature index when both fit in 32 bits. */
+static void pack_labels(i2m_edt_t *e, int64_t nbox)
+{
+  const i2m_image_t *img = e->img;
+  int fbits = bits_for((uint64_t)nbox - 1), lbits = bits_for((uint64_t)img->nlabels - 1);
+  if (fbits + lbits > 32) return;
+  e->label_shift = fbits;
+  e->feat_mask = fbits >= 32 ? UINT32_MAX : (1u << fbits) - 1;
+  I2M_OMP(omp parallel for schedule(static))
+  for (int64_t k = 0; k < e->m[2]; k++)
+    for (int64_t j = 0; j < e->m[1]; j++) {
+      int64_t row = (k * e->m[1] + j) * e->m[0];
+      for (int64_t i = 0; i < e->m[0]; i++) {
+        uint32_t lab = (uint32_t)i2m_image_label_voxel(img, e->lo[0] + i, e->lo[1] + j, e->lo[2] + k);
+        e->ft[row + i] = (int32_t)((uint32_t)e->ft[row + i] | (lbits ? lab << fbits : 0u));
+      }
+    }
+  e->labels_packed = true;
+}
+
 i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
 {
   i2m_edt_t *e = NULL;
   *out = NULL;
   I2M_CALL(i2m_calloc(1, sizeof *e, &e));
   e->img = img;
+  e->feat_mask = UINT32_MAX;
   int64_t hi[3];
   boundary_box(img, e->lo, hi);
   for (int a = 0; a < 3; a++) {
@@ -219,6 +247,7 @@ i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
   e->nboundary = nb;
   edt_pass_rows(e);
   for (int ax = 1; ax < 3 && err == I2M_OK; ax++) err = edt_pass(e, ax);
+  if (err == I2M_OK) pack_labels(e, nbox);
   if (err != I2M_OK) i2m_edt_destroy(&e);
   *out = e;
   return err;
@@ -233,14 +262,11 @@ void i2m_edt_destroy(i2m_edt_t **e)
 
 /* Closest point to p on the faces between boundary voxel b (image index) and its
  * differently-labelled 6-neighbours. */
-static double closest_on_voxel_faces(const i2m_image_t *img, const int64_t b[3], const double p[3], double z[3],
+static double closest_on_voxel_faces(const i2m_edt_t *e, const int64_t b[3], const double p[3], double z[3],
                                      int pair[2])
 {
-  const int64_t n0 = img->n[0], n1 = img->n[1];
-  const int64_t stride[3] = {1, n0, n0 * n1};
-  const int64_t base = (b[2] * n1 + b[1]) * n0 + b[0];
-  const bool interior = b[0] > 0 && b[1] > 0 && b[2] > 0 && b[0] < n0 - 1 && b[1] < n1 - 1 && b[2] < img->n[2] - 1;
-  const int lb = i2m_image_index(img, base);
+  const i2m_image_t *img = e->img;
+  const int lb = i2m_edt_label_voxel(e, b[0], b[1], b[2]);
   double best = INFINITY, c[3], h[3], q0[3];
   for (int a = 0; a < 3; a++) {
     c[a] = (double)b[a] * img->spacing[a];
@@ -250,13 +276,9 @@ static double closest_on_voxel_faces(const i2m_image_t *img, const int64_t b[3],
   }
   for (int ax = 0; ax < 3; ax++)
     for (int dir = -1; dir <= 1; dir += 2) {
-      int ln;
-      if (interior) ln = i2m_image_index(img, base + dir * stride[ax]);
-      else {
-        int64_t n[3] = {b[0], b[1], b[2]};
-        n[ax] += dir;
-        ln = i2m_image_label_voxel(img, n[0], n[1], n[2]);
-      }
+      int64_t n[3] = {b[0], b[1], b[2]};
+      n[ax] += dir;
+      int ln = i2m_edt_label_voxel(e, n[0], n[1], n[2]);
       if (ln == lb) continue;
       double q[3] = {q0[0], q0[1], q0[2]};
       q[ax] = c[ax] + dir * h[ax]; /* the face plane; the other coordinates clamped into it */
@@ -296,9 +318,9 @@ double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, dou
       c[a] = (int64_t)u;
     }
   }
-  int32_t f = e->ft[((c[2] - e->lo[2]) * e->m[1] + (c[1] - e->lo[1])) * e->m[0] + (c[0] - e->lo[0])];
+  uint32_t f = i2m_edt_feature(e, ((c[2] - e->lo[2]) * e->m[1] + (c[1] - e->lo[1])) * e->m[0] + (c[0] - e->lo[0]));
   uint32_t fc[3];
-  box_coords(e, (uint32_t)f, fc);
+  box_coords(e, f, fc);
   int64_t b[3] = {e->lo[0] + fc[0], e->lo[1] + fc[1], e->lo[2] + fc[2]};
   if (inside && isfinite(max_d2)) {
     /* b is the boundary voxel nearest to the centre of p's voxel; every interface point is
@@ -311,7 +333,7 @@ double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, dou
     double lb = sqrt(dc2) - 2.0 * sqrt(h2);
     if (lb > 0 && lb * lb > max_d2) return INFINITY;
   }
-  return closest_on_voxel_faces(img, b, p, z, pair);
+  return closest_on_voxel_faces(e, b, p, z, pair);
 }
 
 double i2m_edt_closest_world(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2])
@@ -328,15 +350,15 @@ double i2m_edt_closest_world(const i2m_edt_t *e, const double p[3], double max_d
   return d2;
 }
 
-void i2m_edt_bisect(const i2m_image_t *img, const double a[3], const double b[3], double tol, double x[3],
+void i2m_edt_bisect(const i2m_edt_t *e, const double a[3], const double b[3], double tol, double x[3],
                     int *label_a, int *label_b)
 {
   double p[3] = {a[0], a[1], a[2]}, q[3] = {b[0], b[1], b[2]};
-  int la = i2m_image_label_at_world(img, p), lb = i2m_image_label_at_world(img, q);
+  int la = i2m_edt_label_at_world(e, p), lb = i2m_edt_label_at_world(e, q);
   double tol2 = tol * tol;
   for (int it = 0; it < 200 && i2m_dist2(p, q) > tol2; it++) {
     double m[3] = {0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1]), 0.5 * (p[2] + q[2])};
-    int lm = i2m_image_label_at_world(img, m);
+    int lm = i2m_edt_label_at_world(e, m);
     if (lm != la) { /* keep the half next to a: the first change from a */
       memcpy(q, m, sizeof m);
       lb = lm;

@@ -15,7 +15,7 @@ void tet_geom(const i2m_refine_t *r, uint32_t t, bool cached_label, tet_geom_t *
   bool flat = i2m_tet_circumcenter(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]),
                                    i2m_dt_xyz(dt, v[3]), g->cc, &g->r2) != 0;
   if (cached_label) g->label = tinfo(dt, t)->label;
-  else g->label = flat ? 0 : i2m_image_label_at_world(r->img, g->cc);
+  else g->label = flat ? 0 : i2m_edt_label_at_world(r->edt, g->cc);
 }
 
 /* Size and ratio bounds at a point (world) with label index lab. */
@@ -147,7 +147,7 @@ static bool facet_action(const i2m_refine_t *r, uint32_t t, uint32_t i, action_t
   tet_geom(r, u, true, &gu);
   if (!isfinite(gt.r2) || !isfinite(gu.r2)) return false;
   int la, lb;
-  i2m_edt_bisect(r->img, gt.cc, gu.cc, r->bisect_tol, a->p, &la, &lb);
+  i2m_edt_bisect(r->edt, gt.cc, gu.cc, r->bisect_tol, a->p, &la, &lb);
   if (la == lb || !in_box(dt, a->p)) return false;
   a->patch = patch_key(la, lb);
   i2m_gidx_t none = INT64_MAX; /* a fresh point: its id is larger than every vertex's */

@@ -294,6 +294,48 @@ static void test_duplicates(void)
   i2m_dt_destroy(&dt);
 }
 
+/* A vertex with a star of about a thousand tets (the centre of points on a sphere): removing
+ * it grows the scratch for stars, re-inserting it needs a cavity as large; both must work
+ * from whichever scratch the other left (a regression: the cavity's local-index rows once
+ * outgrew their array after a large removal). */
+static void test_large_star_remove_insert(void)
+{
+  const size_t n = 600;
+  double *xyz = malloc(3 * (n + 1) * sizeof *xyz);
+  CU_ASSERT_FATAL(xyz != NULL);
+  for (size_t k = 0; k < n; k++) {
+    double u = 2 * urand() - 1, phi = 2 * I2M_PI * urand(), s = sqrt(1 - u * u);
+    xyz[3 * k] = 10 * s * cos(phi);
+    xyz[3 * k + 1] = 10 * s * sin(phi);
+    xyz[3 * k + 2] = 10 * u;
+  }
+  xyz[3 * n] = xyz[3 * n + 1] = xyz[3 * n + 2] = 0.01;
+  i2m_dt_t *dt = make_dt(-100, 100, (uint32_t)n + 1);
+  uint32_t *vid = malloc((n + 1) * sizeof *vid);
+  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n + 1, 8, 9, vid, NULL) == I2M_OK);
+  int64_t nt0 = i2m_dt_count_tets(dt);
+  uint64_t sum0 = i2m_dt_checksum(dt, NULL);
+  i2m_dt_ctx_t ctx;
+  CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
+  for (int round = 0; round < 3; round++) {
+    CU_ASSERT_EQUAL_FATAL(i2m_dt_remove(&ctx, vid[n]), I2M_DT_OK);
+    CU_ASSERT(ctx.nnew > 500); /* the hole is re-triangulated by the sphere's points */
+    i2m_dt_unlock_all(&ctx);
+    assert_valid(dt);
+    uint32_t start = ctx.newt[0];
+    CU_ASSERT_EQUAL_FATAL(i2m_dt_insert_walk(&ctx, xyz + 3 * n, 8 + (int64_t)n, I2M_VK_FREE, start, &vid[n]),
+                          I2M_DT_OK);
+    CU_ASSERT(ctx.nnew > 500);
+    assert_valid(dt);
+    CU_ASSERT_EQUAL(i2m_dt_count_tets(dt), nt0);
+    CU_ASSERT_EQUAL(i2m_dt_checksum(dt, NULL), sum0); /* the same tetrahedralization again */
+  }
+  i2m_dt_ctx_free(&ctx);
+  i2m_dt_destroy(&dt);
+  free(vid);
+  free(xyz);
+}
+
 /* The empty box: 8 cospherical corners give 5 or 6 positive tets filling the box. */
 static void test_box(void)
 {
@@ -321,5 +363,6 @@ static const test_case_t cases[] = {
     {"remove random subset of random points", test_remove_random},
     {"remove random subset of a lattice", test_remove_lattice},
     {"remove every point", test_remove_everything},
+    {"large star: remove, insert again", test_large_star_remove_insert},
 };
 TEST_MAIN("delaunay kernel", cases)

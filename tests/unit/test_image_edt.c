@@ -82,8 +82,10 @@ static void test_feature_transform_exact(void)
     for (int64_t k = 0; k < e->m[2]; k++)
       for (int64_t j = 0; j < e->m[1]; j++)
         for (int64_t i = 0; i < e->m[0]; i++) {
-          int32_t f = e->ft[(k * e->m[1] + j) * e->m[0] + i];
-          CU_ASSERT_FATAL(f >= 0);
+          int64_t f = i2m_edt_feature(e, (k * e->m[1] + j) * e->m[0] + i);
+          CU_ASSERT_FATAL(f < e->m[0] * e->m[1] * e->m[2]);
+          CU_ASSERT(i2m_edt_label_voxel(e, e->lo[0] + i, e->lo[1] + j, e->lo[2] + k) ==
+                    i2m_image_label_voxel(img, e->lo[0] + i, e->lo[1] + j, e->lo[2] + k));
           int64_t fi = f % e->m[0], fj = (f / e->m[0]) % e->m[1], fk = f / (e->m[0] * e->m[1]);
           int64_t v[3] = {e->lo[0] + i, e->lo[1] + j, e->lo[2] + k}, b[3] = {e->lo[0] + fi, e->lo[1] + fj, e->lo[2] + fk};
           CU_ASSERT(is_boundary(img, b[0], b[1], b[2]));
@@ -155,8 +157,12 @@ static void test_no_interface(void)
 static void test_bisection(void)
 {
   i2m_image_t *img = random_image(12, 12, 10, 0.5);
+  i2m_edt_t *e = NULL;
+  CU_ASSERT_FATAL(i2m_edt_create(img, &e) == I2M_OK);
+  CU_ASSERT(e->labels_packed);
   int found = 0;
   for (int q = 0; q < 300; q++) {
+    e->labels_packed = q % 2 == 0; /* the packed labels, and the image's (same answers) */
     double a[3], b[3], x[3];
     for (int k = 0; k < 3; k++) {
       a[k] = urand() * (double)img->n[k] * img->spacing[k];
@@ -165,7 +171,7 @@ static void test_bisection(void)
     if (i2m_image_label_at(img, a) == i2m_image_label_at(img, b)) continue;
     int la, lb;
     double tol = 1e-4;
-    i2m_edt_bisect(img, a, b, tol, x, &la, &lb);
+    i2m_edt_bisect(e, a, b, tol, x, &la, &lb);
     found++;
     CU_ASSERT_EQUAL(la, i2m_image_label_at(img, a));
     CU_ASSERT(la != lb);
@@ -179,6 +185,7 @@ static void test_bisection(void)
     CU_ASSERT(i2m_image_label_at(img, p0) != i2m_image_label_at(img, p1) || i2m_image_label_at(img, p0) == la);
   }
   CU_ASSERT(found > 50);
+  i2m_edt_destroy(&e);
   i2m_image_destroy(&img);
 }
 

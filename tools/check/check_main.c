@@ -217,6 +217,7 @@ int main(int argc, char **argv)
 {
   opts_t o;
   ck_result_t r;
+  i2m_malloc_tune();
   memset(&r, 0, sizeof r);
   int c = parse_args(argc, argv, &o, &r);
   if (c >= 0) return c;

@@ -12,7 +12,7 @@ runs=""
 for spec in "liver.inr.gz 0.667 1M" "liver.inr.gz 0.29 6M" "knee_atlas.nrrd 0.8 1M" "knee_atlas.nrrd 0.33 6M"; do
   set -- $spec
   name="${1%%.*}_$3"
-  OMP_NUM_THREADS=$THREADS bin/i2m "$DATA/$1" -o "$TMP/$name.vtu" --delta "$2" --report "$TMP/$name.json" --quiet
+  bin/i2m "$DATA/$1" -o "$TMP/$name.vtu" --delta "$2" --threads "$THREADS" --report "$TMP/$name.json" --quiet
   "$PY" - "$TMP/$name.json" "$name" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1])); t = r["time_seconds"]

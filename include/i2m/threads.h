@@ -36,6 +36,10 @@ typedef struct {
 /** The cores the process may use (hwloc; 1 if unknown). */
 int i2m_threads_available(void);
 
+/** Threads when none are asked for: OMP_NUM_THREADS when it is set (its first entry), else
+ *  the cores the process may use. */
+int i2m_threads_default(void);
+
 /** Refines to completion on o->threads threads (all rules, both phases).  Not collective. */
 i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep);
 void i2m_threads_report_free(i2m_threads_report_t *rep);

@@ -1,6 +1,7 @@
 /* Threads layer: the cores a process may use and binding threads to them (hwloc). */
 #include <hwloc.h>
 #include <stdio.h>
+#include <stdlib.h>
 
 #include "threads_impl.h"
 
@@ -68,4 +69,15 @@ int i2m_threads_available(void)
   int n = pinning_cores(p);
   pinning_close(p);
   return n;
+}
+
+int i2m_threads_default(void)
+{
+  const char *env = getenv("OMP_NUM_THREADS");
+  if (env) { /* "4" or a nesting list "4,2": the first level is ours */
+    char *end = NULL;
+    long n = strtol(env, &end, 10);
+    if (end != env && n >= 1 && n <= 4096) return (int)n;
+  }
+  return i2m_threads_available();
 }

@@ -305,7 +305,7 @@ static void report_fill(team_t *tm, i2m_threads_report_t *rep)
 
 i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep)
 {
-  int T = o->threads > 0 ? o->threads : i2m_threads_available();
+  int T = o->threads > 0 ? o->threads : i2m_threads_default();
   team_t tm;
   memset(rep, 0, sizeof *rep);
   I2M_CHECK(atomic_exchange(&team_busy, 1) == 0, I2M_ERR_UNSUPPORTED,

@@ -55,5 +55,12 @@ for bin in "${I2M_BIN:-bin}/i2m" build/asan/bin/i2m; do
   else
     echo "FAIL one-voxel image"; fail=1
   fi
+  # no --threads: OMP_NUM_THREADS decides, as for any OpenMP program
+  if OMP_NUM_THREADS=3 timeout 60 "$bin" "$B" -o "$TMP/t.vtu" --report "$TMP/t.json" --quiet &&
+     grep -q '"threads": 3' "$TMP/t.json"; then
+    echo "ok   OMP_NUM_THREADS=3: 3 worker threads"
+  else
+    echo "FAIL OMP_NUM_THREADS=3 did not give 3 worker threads"; fail=1
+  fi
 done
 exit $fail

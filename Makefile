@@ -170,7 +170,7 @@ check-scripts: all
 check-layers:
 	$(Q)sh tools/check_layers.sh
 
-# every image of ../shared/data at 1, 2 and 4 threads (about an hour on 2 cores)
+# every image of ../shared/data at 1, 2 and 4 threads (about ten minutes on 2 cores)
 check-full: all
 	$(Q)I2M_IMAGES="liver.inr.gz spine_verse009.nii.gz brain_kmeans_noisy.nii.gz vertebrae_vbseg.mha \
 	  knee_atlas.nrrd abdominal_atlas.nrrd head_colin27.nii.gz" sh tests/scripts/test_threads_real_images.sh

@@ -39,7 +39,10 @@ for T in (2, 4):
                 print(f"FAIL {img}: label {l['label']} volume differs by {100*d:.2f}% between 1 and {T} threads")
     p1, pT = c[1]["fidelity"]["hausdorff"]["p99_mm"], c[T]["fidelity"]["hausdorff"]["p99_mm"]
     vox = c[1]["fidelity"]["min_spacing"]
-    if abs(pT - p1) > max(0.01 * p1, 0.02 * vox):
+    # the p99 of one image differs between equally valid meshes by more than 1%: on knee_atlas,
+    # one thread with only the order of R7's removals changed gives 0.1896-0.1969 mm (a spread
+    # of 0.026 voxel); thread counts must agree within that noise, with a margin
+    if abs(pT - p1) > max(0.01 * p1, 0.04 * vox):
         ok = False
         print(f"FAIL {img}: two-sided p99 {p1:.4f} mm (1 thread) vs {pT:.4f} mm ({T} threads)")
 speed = ", ".join(f"{T} thr {r[T]['time_seconds']['refinement']:.2f} s ({r[T]['refinement']['rollbacks']} rollbacks)" for T in (1, 2, 4))

@@ -113,6 +113,7 @@ static void test_closest_point(void)
   CU_ASSERT_FATAL(i2m_edt_create(img, &e) == I2M_OK);
   double hdiag = 0.5 * sqrt(pow(img->spacing[0], 2) + pow(img->spacing[1], 2) + pow(img->spacing[2], 2));
   for (int q = 0; q < 400; q++) { /* points inside and well outside the image */
+    e->labels_packed = q % 2 == 0; /* labels from the packed words, and from the image */
     double p[3], z[3];
     for (int a = 0; a < 3; a++) p[a] = (urand() * 1.6 - 0.3) * (double)img->n[a] * img->spacing[a];
     int pair[2];

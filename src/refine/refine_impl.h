@@ -151,7 +151,8 @@ void badlist_get(const badlist_t *q, const i2m_dt_t *dt, size_t i, bad_t *b);
 /** Takes the top entry (the list must not be empty). */
 bad_t badlist_pop(badlist_t *q, const i2m_dt_t *dt);
 /** Puts b (just popped: its slot is still allocated) at the bottom; the bottom entry moves
- *  to the top. */
+ *  to the top.  After a rollback the thread so works elsewhere first, away from the thread
+ *  that holds the lock. */
 void badlist_requeue_bottom(badlist_t *q, const bad_t *b);
 /** Removes the k bottom entries. */
 void badlist_drop_bottom(badlist_t *q, size_t k);

@@ -108,7 +108,7 @@ typedef struct i2m_dt_ctx {
   uint32_t *rowstamp;                             /* [cap_held] epoch its row was made for */
   uint32_t epoch;                                 /* insertion counter (rows' validity) */
   double rmax[3], isp_bound;                      /* largest |row| per axis, its insphere bound */
-  uint32_t *cavl; uint32_t cap_cavl;              /* [cavity tet][4] local vertex indices */
+  uint32_t *cavl;                                 /* [cap_cav][4] local vertex indices of cav[] */
   uint32_t *etab2; uint32_t lcap;                 /* [lcap][lcap] edge table of local ids */
   struct i2m_dt_edge *etab; uint32_t ecap, stamp; /* edge table (adjacency of new tets) */
   uint32_t *pool; uint32_t npool, cap_pool;       /* this context's dead tet slots */

@@ -58,12 +58,7 @@ static inline int i2m_edt_label_at(const i2m_edt_t *e, const double g[3])
 {
   if (!e->labels_packed) return i2m_image_label_at(e->img, g);
   int64_t idx[3];
-  for (int a = 0; a < 3; a++) {
-    double u = g[a] / e->img->spacing[a] + 0.5; /* as i2m_image_label_at */
-    if (!(u >= 0.0) || u >= (double)e->img->n[a]) return 0; /* also rejects NaN */
-    idx[a] = (int64_t)u;
-  }
-  return i2m_edt_label_voxel(e, idx[0], idx[1], idx[2]);
+  return i2m_image_voxel_at(e->img, g, idx) ? i2m_edt_label_voxel(e, idx[0], idx[1], idx[2]) : 0;
 }
 
 /** Label index of a world point. */

@@ -91,16 +91,23 @@ static inline int i2m_image_index(const i2m_image_t *img, int64_t i)
   return img->vox_hi ? img->vox[i] | img->vox_hi[i] << 8 : img->vox[i];
 }
 
+/** The voxel (i,j,k) that contains grid-frame point g; false outside the image (or NaN). */
+static inline bool i2m_image_voxel_at(const i2m_image_t *img, const double g[3], int64_t idx[3])
+{
+  for (int a = 0; a < 3; a++) {
+    double u = g[a] / img->spacing[a] + 0.5;
+    if (!(u >= 0.0)) return false; /* also rejects NaN */
+    idx[a] = (int64_t)u;
+    if (idx[a] >= img->n[a]) return false;
+  }
+  return true;
+}
+
 /** Label index of a grid-frame point: the voxel that contains it, 0 outside the image. */
 static inline int i2m_image_label_at(const i2m_image_t *img, const double g[3])
 {
   int64_t idx[3];
-  for (int a = 0; a < 3; a++) {
-    double u = g[a] / img->spacing[a] + 0.5;
-    if (!(u >= 0.0)) return 0; /* also rejects NaN */
-    idx[a] = (int64_t)u;
-    if (idx[a] >= img->n[a]) return 0;
-  }
+  if (!i2m_image_voxel_at(img, g, idx)) return 0;
   return i2m_image_index(img, (idx[2] * img->n[1] + idx[1]) * img->n[0] + idx[0]);
 }
 

@@ -216,6 +216,16 @@ void i2m_dt_ctx_flush(i2m_dt_ctx_t *ctx)
   ctx->vfresh_next = ctx->vfresh_end = 0;
 }
 
+i2m_err_t ctx_cavity_room(i2m_dt_ctx_t *ctx, uint32_t need)
+{
+  if (need <= ctx->cap_cav) return I2M_OK;
+  uint32_t cap = GROW(need);
+  I2M_CALL(i2m_realloc(cap, sizeof *ctx->cav, &ctx->cav));
+  I2M_CALL(i2m_realloc(4 * (size_t)cap, sizeof *ctx->cavl, &ctx->cavl));
+  ctx->cap_cav = cap;
+  return I2M_OK;
+}
+
 i2m_err_t ctx_hold_room(i2m_dt_ctx_t *ctx)
 {
   uint32_t k = ctx->nheld;

@@ -27,6 +27,9 @@ static inline void set_gid(i2m_dt_t *dt, uint32_t v, i2m_gidx_t g)
 /* ---- vertex locks ---- */
 i2m_err_t ctx_grow_u32(uint32_t **a, uint32_t *cap, uint32_t need);
 
+/* Room for need cavity (or star) tets: cav[] and cavl[] grow together. */
+i2m_err_t ctx_cavity_room(i2m_dt_ctx_t *ctx, uint32_t need);
+
 /* Room for one more held vertex (held[], rows[], rowstamp[] grow together). */
 i2m_err_t ctx_hold_room(i2m_dt_ctx_t *ctx);
 

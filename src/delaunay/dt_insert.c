@@ -93,23 +93,9 @@ static inline int conflict(const i2m_dt_ctx_t *ctx, const uint32_t *l, int flip,
 
 static inline bool row_is_zero(const i2m_dt_ctx_t *ctx, uint32_t l) { return ctx->rows[4 * (size_t)l + 3] == 0.0; }
 
-/* Grows cavl and, if needed, cav.  Vertex removal grows cav alone (its stars need no local
- * indices), so cap_cav >= cap_cavl always and cavl's capacity is the one to test. */
-static I2M_NOINLINE i2m_dt_status_t cavity_grow(i2m_dt_ctx_t *ctx)
-{
-  uint32_t cap = ctx->ncav + ctx->ncav / 2 + 64;
-  if (cap > ctx->cap_cav) {
-    if (i2m_realloc(cap, sizeof *ctx->cav, &ctx->cav) != I2M_OK) return I2M_DT_FULL;
-    ctx->cap_cav = cap;
-  }
-  if (i2m_realloc(4 * (size_t)cap, sizeof *ctx->cavl, &ctx->cavl) != I2M_OK) return I2M_DT_FULL;
-  ctx->cap_cavl = cap;
-  return I2M_DT_OK;
-}
-
 static inline i2m_dt_status_t cavity_push(i2m_dt_ctx_t *ctx, uint32_t t, const uint32_t *l)
 {
-  if (I2M_UNLIKELY(ctx->ncav == ctx->cap_cavl) && cavity_grow(ctx) != I2M_DT_OK) return I2M_DT_FULL;
+  if (I2M_UNLIKELY(ctx->ncav == ctx->cap_cav) && ctx_cavity_room(ctx, ctx->ncav + 1) != I2M_OK) return I2M_DT_FULL;
   memcpy(ctx->cavl + 4 * (size_t)ctx->ncav, l, 4 * sizeof *l);
   ctx->cav[ctx->ncav++] = t;
   meta_store(ctx->dt, t, i2m_dt_meta(ctx->dt, t) | I2M_TM_MARK);

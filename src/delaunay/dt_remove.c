@@ -156,7 +156,7 @@ static i2m_dt_status_t star_collect(i2m_dt_ctx_t *ctx, uint32_t v)
   if (ctx->locking && !vlock_take(ctx, v)) return I2M_DT_ROLLBACK;
   uint32_t t0 = dt->vtet[v]; /* stable: it contains v, which we hold */
   if (ctx->locking && !vlock_take_tet(ctx, dt->tv + 4 * (size_t)t0)) return I2M_DT_ROLLBACK;
-  if (ctx_grow_u32(&ctx->cav, &ctx->cap_cav, 1) != I2M_OK) return I2M_DT_FULL;
+  if (ctx_cavity_room(ctx, 1) != I2M_OK) return I2M_DT_FULL;
   ctx->cav[ctx->ncav++] = t0;
   meta_store(dt, t0, i2m_dt_meta(dt, t0) | I2M_TM_MARK);
   for (uint32_t k = 0; k < ctx->ncav; k++) {
@@ -168,7 +168,7 @@ static i2m_dt_status_t star_collect(i2m_dt_ctx_t *ctx, uint32_t v)
       if (tv[i] == v) continue; /* the face opposite v is a link face */
       uint32_t u = dt->tn[4 * t + i] >> 2;
       if (i2m_dt_meta(dt, u) & I2M_TM_MARK) continue;
-      if (ctx_grow_u32(&ctx->cav, &ctx->cap_cav, ctx->ncav + 1) != I2M_OK) return I2M_DT_FULL;
+      if (ctx_cavity_room(ctx, ctx->ncav + 1) != I2M_OK) return I2M_DT_FULL;
       ctx->cav[ctx->ncav++] = u;
       meta_store(dt, u, i2m_dt_meta(dt, u) | I2M_TM_MARK);
     }

@@ -35,11 +35,9 @@
 #include "expansion.h"
 
 #if defined(__GNUC__) || defined(__clang__)
-#define I2M_NOINLINE __attribute__((noinline))
 #define I2M_COLD __attribute__((noinline, cold))
 #else
-#define I2M_NOINLINE
-#define I2M_COLD
+#define I2M_COLD I2M_NOINLINE
 #endif
 
 /* ---- filter constants ------------------------------------------------------------------

@@ -256,8 +256,8 @@ static i2m_err_t finish_labels(conv_t *c)
   i2m_free(&pairs);
   if (err == I2M_OK && !identity) {
     int64_t nvox = img->n[0] * img->n[1] * img->n[2];
-    if (img->nlabels > 256 && !img->vox_hi) err = image_add_high_plane(img);
-    for (int64_t i = 0; err == I2M_OK && i < nvox; i++) err = image_store_index(img, i, remap[i2m_image_index(img, i)]);
+    for (int64_t i = 0; err == I2M_OK && i < nvox; i++) /* a high plane appears with the first index > 255 */
+      err = image_store_index(img, i, remap[i2m_image_index(img, i)]);
   }
   i2m_free(&remap);
   return err;

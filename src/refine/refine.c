@@ -189,27 +189,21 @@ i2m_err_t i2m_refine_set_workers(i2m_refine_t *r, int n)
 {
   I2M_CHECK(n >= 1 && n <= (int)I2M_DT_MAX_OWNERS, I2M_ERR_ARG, "between 1 and %u threads", I2M_DT_MAX_OWNERS);
   i2m_refine_worker_t *w = NULL;
-  I2M_CALL(i2m_calloc((size_t)n, sizeof *w, &w));
-  for (int k = 0; k < n; k++) {
-    i2m_err_t err = worker_init(&w[k], r, (uint32_t)k + 1, n > 1);
-    if (err != I2M_OK) {
-      for (int j = 0; j < k; j++) worker_free(&w[j]);
-      i2m_free(&w);
-      return err;
-    }
-  }
+  i2m_err_t err = I2M_OK;
+  I2M_CALL(i2m_calloc((size_t)n, sizeof *w, &w)); /* zeroed: worker_free accepts the ones not set up */
+  for (int k = 0; k < n && err == I2M_OK; k++) err = worker_init(&w[k], r, (uint32_t)k + 1, n > 1);
   /* the old worker 0's lists, statistics and progress carry over */
   i2m_refine_worker_t *old = &r->workers[0];
-  for (int l = 0; l < NLEVELS; l++) {
+  for (int l = 0; l < NLEVELS && err == I2M_OK; l++) {
     badlist_free(&w[0].q[l]);
     w[0].q[l] = old->q[l];
     old->q[l] = (badlist_t){0};
-    i2m_err_t err = badlist_set_wide(&w[0].q[l], r->dt, n > 1);
-    if (err != I2M_OK) {
-      for (int j = 0; j < n; j++) worker_free(&w[j]);
-      i2m_free(&w);
-      return err;
-    }
+    err = badlist_set_wide(&w[0].q[l], r->dt, n > 1);
+  }
+  if (err != I2M_OK) {
+    for (int k = 0; k < n; k++) worker_free(&w[k]);
+    i2m_free(&w);
+    return err;
   }
   w[0].pend = old->pend;
   w[0].npend = old->npend;
@@ -339,7 +333,6 @@ i2m_err_t i2m_refine_reclassify(i2m_refine_t *r, int k, int n)
 void i2m_refine_worker_stats(const i2m_refine_t *r, int k, i2m_refine_stats_t *s)
 {
   *s = r->workers[k].st;
-  s->rollbacks = r->workers[k].st.rollbacks;
 }
 
 void i2m_refine_sync(i2m_refine_t *r)

@@ -2,8 +2,8 @@
 # Shared-memory parallel refinement on real images: with 1, 2 and 4 worker threads (4 on
 # this 2-core machine: oversubscribed, the hardest case for the locks), every mesh is valid
 # and meets every guarantee (checked independently, see guarantees.sh), the per-label volumes
-# agree across thread counts within 1% (labels of >= 10000 voxels) and the two-sided 99th
-# percentile within 1% or 0.04 voxel (the spread between equally valid meshes, see below).
+# agree across thread counts within 1% (labels of >= 10000 voxels), and so do the 99th
+# percentiles (mesh to image, image to mesh, two-sided) and the mean distances.
 # `make check` runs three images; `make check-full` sets I2M_IMAGES to all seven.
 set -eu
 . "$(dirname "$0")/guarantees.sh"
@@ -23,7 +23,7 @@ c = {T: json.load(open(f"{tmp}/c{T}.json")) for T in (1, 2, 4)}
 r = {T: json.load(open(f"{tmp}/r{T}.json")) for T in (1, 2, 4)}
 ok = True
 base = {l["label"]: l for l in c[1]["fidelity"]["labels"] if l["voxels"] >= 10000}
-worst = 0.0
+worst = pworst = 0.0
 for T in (2, 4):
     for l in c[T]["fidelity"]["labels"]:
         if l["label"] in base:
@@ -32,16 +32,20 @@ for T in (2, 4):
             if d > 0.01:
                 ok = False
                 print(f"FAIL {img}: label {l['label']} volume differs by {100*d:.2f}% between 1 and {T} threads")
-    p1, pT = c[1]["fidelity"]["hausdorff"]["p99_mm"], c[T]["fidelity"]["hausdorff"]["p99_mm"]
-    vox = c[1]["fidelity"]["min_spacing"]
-    # the p99 of one image differs between equally valid meshes by more than 1%: on knee_atlas,
-    # one thread with only the order of R7's removals changed gives 0.1896-0.1969 mm (a spread
-    # of 0.026 voxel); thread counts must agree within that noise, with a margin
-    if abs(pT - p1) > max(0.01 * p1, 0.04 * vox):
-        ok = False
-        print(f"FAIL {img}: two-sided p99 {p1:.4f} mm (1 thread) vs {pT:.4f} mm ({T} threads)")
+    # the 99th percentiles (each direction and both pooled) and the mean distances
+    for side in ("mesh_to_image", "image_to_mesh", "hausdorff"):
+        for fig in ("p99_mm", "mean_mm"):
+            x1, xT = c[1]["fidelity"][side][fig], c[T]["fidelity"][side][fig]
+            d = abs(xT - x1) / x1
+            pworst = max(pworst, d)
+            if d > 0.01:
+                ok = False
+                print(f"FAIL {img}: {side} {fig} {x1:.4f} (1 thread) vs {xT:.4f} ({T} threads)")
+# the single-point maxima are bounded (mesh to image by delta), not expected to agree: shown
+maxima = ", ".join(f"{s} max {min(c[T]['fidelity'][s]['max_mm'] for T in c):.3f}-{max(c[T]['fidelity'][s]['max_mm'] for T in c):.3f} mm"
+                   for s in ("mesh_to_image", "image_to_mesh"))
 speed = ", ".join(f"{T} thr {r[T]['time_seconds']['refinement']:.2f} s ({r[T]['refinement']['rollbacks']} rollbacks)" for T in (1, 2, 4))
-print(f"{'ok  ' if ok else 'FAIL'} {img}: valid and within bounds at 1, 2, 4 threads; volumes agree within {100*worst:.2f}%; {speed}")
+print(f"{'ok  ' if ok else 'FAIL'} {img}: valid and within bounds at 1, 2, 4 threads; volumes agree within {100*worst:.2f}%, p99s and means within {100*pworst:.2f}%; {maxima}; {speed}")
 sys.exit(0 if ok else 1)
 PY
 done

@@ -636,6 +636,59 @@ static void test_fidelity_missing_label(void)
   i2m_image_destroy(&img);
 }
 
+/* Brute-force weighted q-quantile of (d, w) pairs: the smallest d whose cumulative weight
+ * (pairs sorted by d) reaches q of the total. */
+static double brute_quantile(const float *d, const float *w, int64_t n, double q)
+{
+  double total = 0;
+  for (int64_t i = 0; i < n; i++) total += w[i];
+  double best = INFINITY;
+  for (int64_t i = 0; i < n; i++) { /* d[i] is the answer iff weight(<= d[i]) >= q total */
+    double below = 0;
+    for (int64_t j = 0; j < n; j++)
+      if (d[j] <= d[i]) below += w[j];
+    if (below >= q * total && d[i] < best) best = d[i];
+  }
+  return best;
+}
+
+/* Percentiles weigh each sample by its area and never separate a distance from its weight:
+ * a side's own percentile, taken first, must not disturb the pooled one (it once did, by
+ * reordering the distances in place). */
+static void test_weighted_percentiles(void)
+{
+  enum { N0 = 1000, N1 = 600 };
+  float *d0 = malloc(N0 * sizeof *d0), *w0 = malloc(N0 * sizeof *w0);
+  float *d1 = malloc(N1 * sizeof *d1), *w1 = malloc(N1 * sizeof *w1);
+  float all_d[N0 + N1], all_w[N0 + N1];
+  CU_ASSERT_FATAL(d0 && w0 && d1 && w1);
+  for (int i = 0; i < N0; i++) { /* shuffled 0..0.999, the far half ten times heavier */
+    d0[i] = (float)((i * 7919) % N0) / N0;
+    w0[i] = d0[i] < 0.5f ? 1.0f : 10.0f;
+  }
+  for (int i = 0; i < N1; i++) { /* 0.3..0.9, heavy near the top */
+    d1[i] = 0.3f + 0.6f * (float)((i * 409) % N1) / N1;
+    w1[i] = d1[i] > 0.8f ? 25.0f : 0.5f;
+  }
+  memcpy(all_d, d0, sizeof(float) * N0);
+  memcpy(all_w, w0, sizeof(float) * N0);
+  memcpy(all_d + N0, d1, sizeof(float) * N1);
+  memcpy(all_w + N0, w1, sizeof(float) * N1);
+  double want0 = brute_quantile(d0, w0, N0, 0.99), want1 = brute_quantile(d1, w1, N1, 0.99);
+  double want = brute_quantile(all_d, all_w, N0 + N1, 0.99);
+  pooled_t pool = {{NULL, NULL}, {NULL, NULL}, {0, 0}};
+  ck_dist_t s0, s1;
+  pooled_take(&pool, 0, &d0, &w0, N0, 0.0, &s0);
+  pooled_take(&pool, 1, &d1, &w1, N1, 0.0, &s1);
+  double tol = 2.0 / (1 << 20); /* histogram bins up to the largest distance (< 1) */
+  CU_ASSERT_DOUBLE_EQUAL(s0.p99, want0, tol);
+  CU_ASSERT_DOUBLE_EQUAL(s1.p99, want1, tol);
+  CU_ASSERT_DOUBLE_EQUAL(weighted_quantile(&pool, 0, 1, 0.99), want, tol);
+  /* the weights matter here: unweighted, the three would be 0.989, 0.893 and 0.983 */
+  CU_ASSERT(want0 > 0.9935 && want1 > 0.8975 && want > 0.9905);
+  pooled_free(&pool);
+}
+
 static int64_t two_blobs(int64_t i, int64_t j, int64_t k)
 {
   if (k == 1 && j == 1 && (i == 0 || i == 1 || i == 4)) return 3; /* two components */
@@ -739,6 +792,7 @@ static const test_case_t cases[] = {
     {"fidelity_exact", test_fidelity_exact},
     {"fidelity_shift", test_fidelity_shift},
     {"fidelity_missing_label", test_fidelity_missing_label},
+    {"weighted_percentiles", test_weighted_percentiles},
     {"components", test_components},
 };
 

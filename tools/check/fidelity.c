@@ -244,36 +244,6 @@ static double tri_dist2(const void *ctx, int64_t i, const double p[3])
   return ck_dist2_point_triangle(p, t->g + 3 * v[0], t->g + 3 * v[1], t->g + 3 * v[2]);
 }
 
-/* ---- percentiles of float arrays ---- */
-static double fpercentile(float *a, int64_t n, double q)
-{
-  if (n <= 0) return 0.0;
-  int64_t k = (int64_t)ceil(q * (double)n) - 1, lo = 0, hi = n - 1;
-  if (k < 0) k = 0;
-  while (lo < hi) {
-    float piv = a[lo + (hi - lo) / 2];
-    int64_t i = lo, j = hi;
-    while (i <= j) {
-      while (a[i] < piv) i++;
-      while (a[j] > piv) j--;
-      if (i <= j) {
-        float t = a[i];
-        a[i] = a[j];
-        a[j] = t;
-        i++;
-        j--;
-      }
-    }
-    if (k <= j)
-      hi = j;
-    else if (k >= i)
-      lo = i;
-    else
-      break;
-  }
-  return a[k];
-}
-
 /* Number of samples of a triangle: (n+1)(n+2)/2 with n even and n * spacing >= longest edge. */
 static int64_t tri_divisions(const double *a, const double *b, const double *c, double h)
 {
@@ -303,15 +273,8 @@ static void tri_sample(const double *a, const double *b, const double *c, int64_
   for (int k = 0; k < 3; k++) p[k] = a[k] + u * (b[k] - a[k]) + w * (c[k] - a[k]);
 }
 
-static void dist_summary(float *d, int64_t n, double sum, ck_dist_t *out)
-{
-  out->count = n;
-  out->mean = n ? sum / (double)n : 0.0;
-  out->p99 = fpercentile(d, n, 0.99);
-}
-
 /* Both directed distance sets with the surface area each sample stands for, pooled for the
- * two-sided percentile. */
+ * two-sided percentile.  Percentiles weigh every sample by its area (one side's or both). */
 typedef struct {
   float *d[2], *w[2];
   int64_t n[2];
@@ -328,12 +291,13 @@ static double tri_area(const double *a, const double *b, const double *c)
   return 0.5 * sqrt(x * x + y * y + z * z);
 }
 
-/* The q-quantile of the pooled, area-weighted distances (histogram of 2^20 bins up to the
- * largest distance: exact to max / 2^20). */
-static double pooled_quantile(const pooled_t *p, double q)
+/* The q-quantile of the area-weighted distances of sides s0..s1 of the pool (a histogram of
+ * 2^20 bins up to the largest distance: exact to max / 2^20).  The arrays are only read, so
+ * every distance stays paired with its weight. */
+static double weighted_quantile(const pooled_t *p, int s0, int s1, double q)
 {
   double dmax = 0, wsum = 0;
-  for (int s = 0; s < 2; s++)
+  for (int s = s0; s <= s1; s++)
     for (int64_t i = 0; i < p->n[s]; i++) {
       dmax = fmax(dmax, p->d[s][i]);
       wsum += p->w[s][i];
@@ -342,7 +306,7 @@ static double pooled_quantile(const pooled_t *p, double q)
   enum { NB = 1 << 20 };
   double *h = calloc(NB, sizeof *h);
   if (!h) return NAN;
-  for (int s = 0; s < 2; s++)
+  for (int s = s0; s <= s1; s++)
     for (int64_t i = 0; i < p->n[s]; i++) {
       int64_t b = (int64_t)((double)p->d[s][i] / dmax * (NB - 1));
       h[b < 0 ? 0 : b >= NB ? NB - 1 : b] += p->w[s][i];
@@ -363,10 +327,12 @@ static double pooled_quantile(const pooled_t *p, double q)
  * image, 1: image to mesh); *d and *w are then owned by the pool. */
 static void pooled_take(pooled_t *p, int side, float **d, float **w, int64_t ns, double sum, ck_dist_t *out)
 {
-  dist_summary(*d, ns, sum, out);
   p->d[side] = *d;
   p->w[side] = *w;
   p->n[side] = ns;
+  out->count = ns;
+  out->mean = ns ? sum / (double)ns : 0.0;
+  out->p99 = weighted_quantile(p, side, side, 0.99);
   *d = NULL;
   *w = NULL;
 }
@@ -845,7 +811,7 @@ i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image
   *t = a->max >= b->max ? *a : *b;
   /* two-sided distribution: both directed distance sets pooled, each sample weighted by the
    * surface area it stands for (mesh triangles and image faces alike) */
-  t->p99 = pooled_quantile(&pool, 0.99);
+  t->p99 = weighted_quantile(&pool, 0, 1, 0.99);
   t->count = a->count + b->count;
   t->mean = t->count ? (a->mean * (double)a->count + b->mean * (double)b->count) / (double)t->count : 0;
 out:

@@ -123,8 +123,9 @@ size_t i2m_refine_give(i2m_refine_t *r, int from, int to);
 i2m_err_t i2m_refine_spread(i2m_refine_t *r);
 /** Grows the triangulation's capacity (every worker paused). */
 i2m_err_t i2m_refine_grow(i2m_refine_t *r);
-/** Multiplies every size bound by f (the coarse phase uses f > 1).  Not while refining. */
-void i2m_refine_set_size_scale(i2m_refine_t *r, double f);
+/** Multiplies delta and every size bound by f (the coarse phase uses f > 1; 1 restores the
+ *  parameters).  Not while refining. */
+void i2m_refine_set_scale(i2m_refine_t *r, double f);
 /** Worker k of n classifies the live tets k, k+n, ... and queues the bad ones (after a change
  *  of bounds; all n workers run it, nothing else runs). */
 i2m_err_t i2m_refine_reclassify(i2m_refine_t *r, int k, int n);

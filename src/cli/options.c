@@ -24,7 +24,7 @@ void cli_usage(FILE *f)
           "                        a world box (mm) whose tets get size S and ratio R (repeatable)\n"
           "  --threads T           worker threads (default: OMP_NUM_THREADS if set, else the cores\n"
           "                        the process may use)\n"
-          "  --coarse-factor F     with size bounds, a coarse phase at F x the sizes first (default 4)\n"
+          "  --coarse-factor F     a coarse mesh first, at F x delta and F x the size bounds (default 4)\n"
           "  --no-pin              do not bind the threads to cores\n"
           "  --report FILE.json    write the run report as JSON\n"
           "  --seed N              random seed (default 1)\n"

@@ -119,7 +119,7 @@ static bool surface_vertex_near(const i2m_refine_t *r, uint32_t t, const double 
   for (int i = 0; i < 4; i++)
     if (dt->vkind[v[i]] == I2M_VK_SURFACE && r->surf.tag[v[i]] == patch && i2m_dist2(i2m_dt_xyz(dt, v[i]), z) < r->delta2)
       return true;
-  return vgrid_has_within(&r->surf, dt, z, r->p.delta, patch);
+  return vgrid_has_within(&r->surf, dt, z, r->delta, patch);
 }
 
 int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *ti)

@@ -71,8 +71,7 @@ static i2m_err_t setup_bounds(i2m_refine_t *r)
   const i2m_image_t *img = r->img;
   r->min_spacing = fmin(img->spacing[0], fmin(img->spacing[1], img->spacing[2]));
   if (isnan(r->p.delta)) r->p.delta = i2m_refine_default_delta(img);
-  r->delta2 = r->p.delta * r->p.delta;
-  r->four_delta2 = 4.0 * r->delta2;
+  i2m_refine_set_scale(r, 1.0);
   double s = sin(r->p.facet_angle * I2M_PI / 180.0);
   r->sin2_facet = s * s;
   r->bisect_tol = 1e-3 * r->min_spacing;
@@ -98,7 +97,6 @@ i2m_err_t i2m_refine_create(const i2m_image_t *img, const i2m_edt_t *edt, const 
   r->img = img;
   r->edt = edt;
   r->p = *params;
-  r->size_scale = 1.0;
   atomic_init(&r->next_gid, 8);
   I2M_CALL_GOTO(err, fail, setup_bounds(r));
   /* the virtual box: the image block (world) grown by its largest extent on every side */
@@ -319,7 +317,13 @@ i2m_err_t i2m_refine_grow(i2m_refine_t *r)
   return I2M_OK;
 }
 
-void i2m_refine_set_size_scale(i2m_refine_t *r, double f) { r->size_scale = f; }
+void i2m_refine_set_scale(i2m_refine_t *r, double f)
+{
+  r->size_scale = f;
+  r->delta = f * r->p.delta;
+  r->delta2 = r->delta * r->delta;
+  r->four_delta2 = 4.0 * r->delta2;
+}
 
 i2m_err_t i2m_refine_reclassify(i2m_refine_t *r, int k, int n)
 {

@@ -103,12 +103,13 @@ struct i2m_refine {
   const i2m_image_t *img; /* borrowed */
   const i2m_edt_t *edt;   /* borrowed */
   i2m_refine_params_t p;  /* delta resolved; arrays borrowed from the caller */
+  double delta;           /* the sampling distance in force: p.delta x scale */
   double delta2;          /* delta^2 */
   double four_delta2;     /* (2 delta)^2 */
   double sin2_facet;      /* sin^2 of the facet angle bound */
   double bisect_tol;      /* bisection tolerance (mm) */
   double min_spacing;
-  double size_scale;      /* multiplies every size bound (coarse phase: > 1) */
+  double size_scale;      /* multiplies delta and every size bound (coarse phase: > 1) */
   double *label_size;     /* owned: [nlabels] size bound per label index (INFINITY: none) */
   i2m_dt_t *dt;           /* owned */
   vgrid_t surf;           /* surface vertices, tagged with their patch (R1) */

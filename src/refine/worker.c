@@ -141,7 +141,7 @@ static int do_removal(i2m_refine_worker_t *w, pending_t pv)
 /* R7: queue the free vertices within 2 delta of the new surface vertex z. */
 static i2m_err_t queue_r7(i2m_refine_worker_t *w, const double z[3])
 {
-  return vgrid_collect_within(&w->r->freev, w->r->dt, z, 2.0 * w->r->p.delta, &w->pend, &w->npend, &w->cap_pend);
+  return vgrid_collect_within(&w->r->freev, w->r->dt, z, 2.0 * w->r->delta, &w->pend, &w->npend, &w->cap_pend);
 }
 
 /* Inserts the action's point; in a sequential run, a surface point whose seed's ball holds it

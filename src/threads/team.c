@@ -246,11 +246,6 @@ static i2m_err_t warm_up(i2m_refine_t *r, int T)
   return i2m_refine_spread(r);
 }
 
-static bool has_size_bound(const i2m_refine_params_t *p)
-{
-  return isfinite(p->size) || p->nlabel_sizes > 0 || p->nregions > 0;
-}
-
 static i2m_err_t team_init(team_t *tm, i2m_refine_t *r, int T, bool pin)
 {
   memset(tm, 0, sizeof *tm);
@@ -316,13 +311,13 @@ i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_t
     return err;
   }
   err = team_init(&tm, r, T, o->pin);
-  bool coarse = o->coarse_factor > 1 && has_size_bound(i2m_refine_params(r));
+  bool coarse = o->coarse_factor > 1;
   double t0 = i2m_wtime();
-  if (err == I2M_OK && coarse) { /* the coarse mesh: size bounds x the factor, same threads */
-    i2m_refine_set_size_scale(r, o->coarse_factor);
+  if (err == I2M_OK && coarse) { /* the coarse mesh: delta and the size bounds x the factor */
+    i2m_refine_set_scale(r, o->coarse_factor);
     err = warm_up(r, T);
     if (err == I2M_OK) err = run_phase(&tm, false);
-    i2m_refine_set_size_scale(r, 1.0);
+    i2m_refine_set_scale(r, 1.0);
   } else if (err == I2M_OK) {
     err = warm_up(r, T);
   }

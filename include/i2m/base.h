@@ -34,7 +34,11 @@ typedef enum {
 #define I2M_LIKELY(x) __builtin_expect(!!(x), 1)
 #define I2M_UNLIKELY(x) __builtin_expect(!!(x), 0)
 #define I2M_NOINLINE __attribute__((noinline))
+#define I2M_PREFETCH(addr) __builtin_prefetch(addr)
+#define I2M_INLINE inline __attribute__((always_inline)) /* hot-path helpers the compiler would call */
 #else
+#define I2M_INLINE inline
+#define I2M_PREFETCH(addr) ((void)0)
 #define I2M_NOINLINE
 #define I2M_PRINTF(f, a)
 #define I2M_LIKELY(x) (x)
@@ -110,6 +114,11 @@ i2m_err_t i2m_realloc(size_t n, size_t size, void *ptr);
 void i2m_malloc_tune(void);
 /** free(*ptr); *ptr = NULL.  Accepts NULL. */
 void i2m_free(void *ptr);
+/** i2m_realloc for the large, randomly accessed arrays (the mesh): blocks of several MB are
+ *  advised to use transparent huge pages where the system offers them (Linux
+ *  madvise(MADV_HUGEPAGE); a no-op elsewhere).  Random access over hundreds of MB then
+ *  misses the TLB far less often, and first touches fault 2 MB at a time. */
+i2m_err_t i2m_realloc_large(size_t n, size_t size, void *ptr);
 
 /* ---- logging ---- */
 

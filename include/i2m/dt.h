@@ -79,12 +79,10 @@ typedef enum {
   I2M_DT_FAILED            /**< removal could not re-triangulate (never expected) */
 } i2m_dt_status_t;
 
-/** Boundary face of a cavity: the face of cavity tet t opposite its vertex i. */
+/** Boundary face of a cavity: face i of the k-th cavity tet (ki = k << 2 | i) and the
+ *  outside neighbour across it (4*u+j, or I2M_DT_NONE on the box hull). */
 typedef struct {
-  uint32_t t, i;           /* cavity tet and face index */
-  uint32_t out;            /* 4*u+j of the outside neighbour, or I2M_DT_NONE */
-  uint32_t v[4];           /* copy of tv[t] (p goes into slot i) */
-  uint32_t l[4];           /* local indices of v[] (see i2m_dt_ctx_t) */
+  uint32_t ki, out;
 } i2m_dt_bface_t;
 
 /** Lock word of a vertex: 0 when free, else owner | local index << I2M_DT_LOCAL_SHIFT.  The
@@ -104,12 +102,10 @@ typedef struct i2m_dt_ctx {
   i2m_dt_bface_t *bnd; uint32_t nbnd, cap_bnd;    /* cavity boundary faces */
   uint32_t *newt; uint32_t nnew, cap_new;         /* tets created by the last operation */
   uint32_t *held; uint32_t nheld, cap_held;       /* vertex locks held = local vertices */
-  double *rows;                                   /* [cap_held][4] translated, lifted */
-  uint32_t *rowstamp;                             /* [cap_held] epoch its row was made for */
-  uint32_t epoch;                                 /* insertion counter (rows' validity) */
+  double *rows;                                   /* [cap_held][4] translated by p, lifted */
   double rmax[3], isp_bound;                      /* largest |row| per axis, its insphere bound */
   uint32_t *cavl;                                 /* [cap_cav][4] local vertex indices of cav[] */
-  uint32_t *etab2; uint32_t lcap;                 /* [lcap][lcap] edge table of local ids */
+  uint16_t *etab2;                                /* [64][64] directed edges of local numbers */
   struct i2m_dt_edge *etab; uint32_t ecap, stamp; /* edge table (adjacency of new tets) */
   uint32_t *pool; uint32_t npool, cap_pool;       /* this context's dead tet slots */
   uint32_t fresh_next, fresh_end;                 /* reserved range of fresh slots */

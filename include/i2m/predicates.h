@@ -107,6 +107,24 @@ static inline int i2m_orient3d_filter(const double a[3], const double b[3], cons
   return 0;
 }
 
+/** det [x; y; z] of three rows already translated by a query point (plain floating point: a
+ *  filter must certify its sign).  orient3d of a tet with one vertex replaced by the query
+ *  point e is +-det of the other three translated by e (see i2m_orient3d_rows_bound). */
+static inline double i2m_det3_rows(const double x[3], const double y[3], const double z[3])
+{
+  return x[2] * (y[0] * z[1] - z[0] * y[1]) - y[2] * (x[0] * z[1] - z[0] * x[1]) + z[2] * (x[0] * y[1] - y[0] * x[1]);
+}
+
+/** Error bound of i2m_det3_rows for rows whose coordinates are at most mx, my, mz in absolute
+ *  value per axis (differences to the query point, as orient3d's filter uses them): the
+ *  permanent is at most 6 mx my mz; 7 absorbs the rounding of the factors.  INFINITY outside
+ *  the ranges where the filter is rigorous (see i2m_orient3d_filter). */
+static inline double i2m_orient3d_rows_bound(double mx, double my, double mz)
+{
+  const double perm = 7.0 * mx * my * mz;
+  return (perm >= I2M_O3D_PERM_MIN) & (mz <= I2M_O3D_ZMAX_MAX) ? I2M_O3D_BOUND * perm : (double)INFINITY;
+}
+
 static inline double i2m_pred_max4_(double a, double b, double c, double d)
 {
   double x = a > b ? a : b, y = c > d ? c : d;

@@ -1,10 +1,17 @@
 /* Base layer: checked allocation.  Every failure sets a message with the size asked for. */
+#if defined(__linux__) && !defined(_DEFAULT_SOURCE)
+#define _DEFAULT_SOURCE /* madvise's MADV_HUGEPAGE */
+#endif
 #include "i2m/base.h"
 
 #include <stdlib.h>
 #include <string.h>
 #if defined(__GLIBC__)
 #include <malloc.h>
+#endif
+#if defined(__linux__)
+#include <sys/mman.h>
+#include <unistd.h>
 #endif
 
 void i2m_malloc_tune(void)
@@ -63,4 +70,25 @@ void i2m_free(void *ptr)
   if (!p) return;
   free(*p);
   *p = NULL;
+}
+
+/* Below this size huge pages would only round the block up. */
+#define LARGE_BLOCK_BYTES ((size_t)8 << 20)
+
+i2m_err_t i2m_realloc_large(size_t n, size_t size, void *ptr)
+{
+  I2M_CALL(i2m_realloc(n, size, ptr));
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  size_t bytes = n * size; /* checked by i2m_realloc */
+  if (bytes >= LARGE_BLOCK_BYTES) {
+    /* The whole pages the block touches: a block this large has a mapping of its own, which
+     * then keeps one set of flags (advising part of it would split it, and a later realloc
+     * could no longer move it with mremap but would copy it). */
+    long pg = sysconf(_SC_PAGESIZE);
+    uintptr_t a = (uintptr_t) * (void **)ptr, page = pg > 0 ? (uintptr_t)pg : 4096;
+    uintptr_t lo = a & ~(page - 1), hi = (a + bytes + page - 1) & ~(page - 1);
+    (void)madvise((void *)lo, hi - lo, MADV_HUGEPAGE); /* advice only: failure is harmless */
+  }
+#endif
+  return I2M_OK;
 }

@@ -11,7 +11,7 @@
 
 static i2m_err_t grow_atomic_u32(_Atomic uint32_t **a, uint32_t old_cap, uint32_t cap, uint32_t init)
 {
-  I2M_CALL(i2m_realloc(cap, sizeof(uint32_t), a));
+  I2M_CALL(i2m_realloc_large(cap, sizeof(uint32_t), a));
   for (uint32_t i = old_cap; i < cap; i++) atomic_init(&(*a)[i], init);
   return I2M_OK;
 }
@@ -21,18 +21,18 @@ i2m_err_t i2m_dt_reserve(i2m_dt_t *dt, uint32_t nv, uint32_t nt)
   I2M_CHECK(nt <= (UINT32_MAX >> 2) - 1 && nv < UINT32_MAX - 1, I2M_ERR_MEMORY,
             "a process can hold at most 2^30 tetrahedra (asked for %u); use more MPI ranks", nt);
   if (nv > dt->cap_v) {
-    I2M_CALL(i2m_realloc((size_t)nv * 4, sizeof(double), &dt->xyzw));
+    I2M_CALL(i2m_realloc_large((size_t)nv * 4, sizeof(double), &dt->xyzw));
     I2M_CALL(i2m_realloc(nv, sizeof(uint8_t), &dt->vkind));
     memset(dt->vkind + dt->cap_v, I2M_VK_DEAD, nv - dt->cap_v); /* slots handed out in chunks */
-    I2M_CALL(i2m_realloc(nv, sizeof(uint32_t), &dt->vtet));
+    I2M_CALL(i2m_realloc_large(nv, sizeof(uint32_t), &dt->vtet));
     I2M_CALL(grow_atomic_u32(&dt->vlock, dt->cap_v, nv, 0));
     dt->cap_v = nv;
   }
   if (nt > dt->cap_t) {
-    I2M_CALL(i2m_realloc((size_t)nt * 4, sizeof(uint32_t), &dt->tv));
-    I2M_CALL(i2m_realloc((size_t)nt * 4, sizeof(uint32_t), &dt->tn));
+    I2M_CALL(i2m_realloc_large((size_t)nt * 4, sizeof(uint32_t), &dt->tv));
+    I2M_CALL(i2m_realloc_large((size_t)nt * 4, sizeof(uint32_t), &dt->tn));
     I2M_CALL(grow_atomic_u32(&dt->meta, dt->cap_t, nt, I2M_TM_DEAD));
-    if (dt->pay_size) I2M_CALL(i2m_realloc(nt, dt->pay_size, &dt->tpay));
+    if (dt->pay_size) I2M_CALL(i2m_realloc_large(nt, dt->pay_size, &dt->tpay));
     dt->cap_t = nt;
   }
   return I2M_OK;
@@ -166,7 +166,6 @@ i2m_err_t i2m_dt_ctx_init(i2m_dt_ctx_t *ctx, i2m_dt_t *dt, uint32_t owner, bool 
   I2M_CHECK(ctx->owner <= I2M_DT_MAX_OWNERS, I2M_ERR_ARG, "at most %u threads per process", I2M_DT_MAX_OWNERS);
   ctx->locking = locking;
   ctx->rng = 0x9E3779B97F4A7C15ull ^ ((uint64_t)owner * 0xD1B54A32D192ED03ull);
-  ctx->epoch = 1;
   I2M_CALL(ctx_edges_begin(ctx, 64));
   return I2M_OK;
 }
@@ -179,7 +178,6 @@ void i2m_dt_ctx_free(i2m_dt_ctx_t *ctx)
   i2m_free(&ctx->newt);
   i2m_free(&ctx->held);
   i2m_free(&ctx->rows);
-  i2m_free(&ctx->rowstamp);
   i2m_free(&ctx->cavl);
   i2m_free(&ctx->etab2);
   i2m_free(&ctx->etab);
@@ -234,7 +232,6 @@ i2m_err_t ctx_hold_room(i2m_dt_ctx_t *ctx)
   uint32_t cap = k + k / 2 + 64;
   I2M_CALL(i2m_realloc(cap, sizeof *ctx->held, &ctx->held));
   I2M_CALL(i2m_realloc(4 * (size_t)cap, sizeof *ctx->rows, &ctx->rows));
-  I2M_CALL(i2m_realloc(cap, sizeof *ctx->rowstamp, &ctx->rowstamp));
   ctx->cap_held = cap;
   return I2M_OK;
 }
@@ -259,7 +256,6 @@ static bool take_fresh_tets(i2m_dt_ctx_t *ctx)
   for (;;) {
     if (cur >= dt->cap_t) return false;
     uint32_t take = dt->cap_t - cur < FRESH_CHUNK ? dt->cap_t - cur : FRESH_CHUNK;
-    if (!ctx->locking) take = 1; /* sequential: keep the high-water mark exact */
     if (atomic_compare_exchange_weak_explicit(&dt->nt_atomic, &cur, cur + take, memory_order_relaxed,
                                               memory_order_relaxed)) {
       ctx->fresh_next = cur;

@@ -30,11 +30,12 @@ i2m_err_t ctx_grow_u32(uint32_t **a, uint32_t *cap, uint32_t need);
 /* Room for need cavity (or star) tets: cav[] and cavl[] grow together. */
 i2m_err_t ctx_cavity_room(i2m_dt_ctx_t *ctx, uint32_t need);
 
-/* Room for one more held vertex (held[], rows[], rowstamp[] grow together). */
+/* Room for one more held vertex (held[] and rows[] grow together). */
 i2m_err_t ctx_hold_room(i2m_dt_ctx_t *ctx);
 
-/* Takes the lock of vertex v for the context (re-entrant), numbering it locally (its row is
- * made when an insertion first needs it).  False: held by another, or out of memory. */
+/* Takes the lock of vertex v for the context (re-entrant), numbering it locally (an insertion
+ * makes the rows of the vertices held when it starts).  False: held by another, or out of
+ * memory. */
 static inline bool vlock_take(i2m_dt_ctx_t *ctx, uint32_t v)
 {
   _Atomic uint32_t *L = &ctx->dt->vlock[v];
@@ -47,7 +48,6 @@ static inline bool vlock_take(i2m_dt_ctx_t *ctx, uint32_t v)
   uint32_t expected = 0, word = ctx->owner | (ctx->nheld << I2M_DT_OWNER_BITS);
   if (cur == 0 && atomic_compare_exchange_strong_explicit(L, &expected, word, memory_order_acquire,
                                                           memory_order_relaxed)) {
-    ctx->rowstamp[ctx->nheld] = ctx->epoch - 1; /* no row yet */
     ctx->held[ctx->nheld++] = v;
     return true;
   }

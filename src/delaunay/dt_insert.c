@@ -1,6 +1,12 @@
 /* Delaunay layer: Bowyer–Watson insertion from a tet in conflict (breadth-first cavity
- * search, refill that reuses the cavity's slots, adjacency by the edge table), the
- * visibility walk, and the lock protocol hooks (REFERENCE §2.2 and §3.5). */
+ * search, refill that reuses the cavity's slots, adjacency by an edge table of local vertex
+ * numbers), the visibility walk, and the lock protocol hooks (REFERENCE §2.2 and §3.5).
+ *
+ * The hot path is written for few instructions per visited face: every vertex the search
+ * meets gets a local number together with its lock (one word, see dt.h) and a cached row
+ * (its coordinates translated by the new point, lifted), so a conflict test is one 4x4
+ * determinant on cached rows checked against one error bound for the whole cavity; the
+ * cavity keeps the local numbers of its tets, and a boundary face is two words. */
 #include "dt_impl.h"
 
 void i2m_dt_unlock_all(i2m_dt_ctx_t *ctx)
@@ -24,45 +30,46 @@ static i2m_dt_status_t cavity_abandon(i2m_dt_ctx_t *ctx, i2m_dt_status_t why)
   return why;
 }
 
-/* Gives vertex v a local index for this insertion: takes its lock word (a compare-and-swap
- * in threaded runs) and caches its row translated by p and lifted (a vertex locked earlier
- * in the same operation gets its row on first use).  Returns the index, -1 if another
- * thread holds the vertex, -2 when out of memory. */
-static inline int64_t local_vertex(i2m_dt_ctx_t *ctx, uint32_t v, const double *p)
+/* The row of local vertex k (vertex v) for point p, and the cavity's error bound grown to
+ * cover it. */
+static I2M_INLINE void row_make(i2m_dt_ctx_t *ctx, uint32_t k, uint32_t v, const double *p)
 {
-  _Atomic uint32_t *L = &ctx->dt->vlock[v];
-  uint32_t cur = atomic_load_explicit(L, memory_order_relaxed);
-  uint32_t k;
-  if ((cur & I2M_DT_OWNER_MASK) == ctx->owner) {
-    k = cur >> I2M_DT_OWNER_BITS;
-    if (I2M_LIKELY(ctx->rowstamp[k] == ctx->epoch)) return k;
-  } else {
-    k = ctx->nheld;
-    if (I2M_UNLIKELY(k == ctx->cap_held) && ctx_hold_room(ctx) != I2M_OK) return -2;
-    uint32_t word = ctx->owner | (k << I2M_DT_OWNER_BITS);
-    if (ctx->locking) {
-      uint32_t expected = 0;
-      if (cur != 0 || !atomic_compare_exchange_strong_explicit(L, &expected, word, memory_order_acquire,
-                                                               memory_order_relaxed)) {
-        ctx->conflict_owner = (cur ? cur : expected) & I2M_DT_OWNER_MASK;
-        return -1;
-      }
-    } else {
-      atomic_store_explicit(L, word, memory_order_relaxed);
-    }
-    ctx->held[k] = v;
-    ctx->nheld = k + 1;
-  }
-  ctx->rowstamp[k] = ctx->epoch;
   double *row = ctx->rows + 4 * (size_t)k;
   i2m_insphere_row(i2m_dt_xyz(ctx->dt, v), p, row);
   const double ax = fabs(row[0]), ay = fabs(row[1]), az = fabs(row[2]);
-  if ((ax > ctx->rmax[0]) | (ay > ctx->rmax[1]) | (az > ctx->rmax[2])) {
+  if (I2M_UNLIKELY((ax > ctx->rmax[0]) | (ay > ctx->rmax[1]) | (az > ctx->rmax[2]))) {
     ctx->rmax[0] = ax > ctx->rmax[0] ? ax : ctx->rmax[0];
     ctx->rmax[1] = ay > ctx->rmax[1] ? ay : ctx->rmax[1];
     ctx->rmax[2] = az > ctx->rmax[2] ? az : ctx->rmax[2];
     ctx->isp_bound = i2m_insphere_rows_bound(ctx->rmax[0], ctx->rmax[1], ctx->rmax[2]);
   }
+}
+
+/* Gives vertex v a local number for this insertion: takes its lock word (a compare-and-swap
+ * in threaded runs) and makes its row.  A vertex the context already holds has its number
+ * (and row) already.  Returns the number, -1 if another thread holds the vertex, -2 when
+ * out of memory. */
+static I2M_INLINE int64_t local_vertex(i2m_dt_ctx_t *ctx, uint32_t v, const double *p)
+{
+  _Atomic uint32_t *L = &ctx->dt->vlock[v];
+  uint32_t cur = atomic_load_explicit(L, memory_order_relaxed);
+  if ((cur & I2M_DT_OWNER_MASK) == ctx->owner) return cur >> I2M_DT_OWNER_BITS;
+  uint32_t k = ctx->nheld;
+  if (I2M_UNLIKELY(k == ctx->cap_held) && ctx_hold_room(ctx) != I2M_OK) return -2;
+  uint32_t word = ctx->owner | (k << I2M_DT_OWNER_BITS);
+  if (ctx->locking) {
+    uint32_t expected = 0;
+    if (cur != 0 || !atomic_compare_exchange_strong_explicit(L, &expected, word, memory_order_acquire,
+                                                             memory_order_relaxed)) {
+      ctx->conflict_owner = (cur ? cur : expected) & I2M_DT_OWNER_MASK;
+      return -1;
+    }
+  } else {
+    atomic_store_explicit(L, word, memory_order_relaxed);
+  }
+  ctx->held[k] = v;
+  ctx->nheld = k + 1;
+  row_make(ctx, k, v, p);
   return k;
 }
 
@@ -71,35 +78,49 @@ static inline uint32_t local_of(const i2m_dt_t *dt, uint32_t v)
   return atomic_load_explicit(&dt->vlock[v], memory_order_relaxed) >> I2M_DT_OWNER_BITS;
 }
 
-/* Conflict test of the tet whose vertices have local indices l[] (positively oriented when
- * flip is 1, negatively when -1) against p, from the cached rows.  First against one bound
- * for every row of this insertion, then against the tet's own bound (tighter when the
- * cavity spans very different sizes); the exact evaluation with the perturbation decides
- * what neither certifies (global vertex ids from ctx->held). */
-static inline int conflict(const i2m_dt_ctx_t *ctx, const uint32_t *l, int flip, const double *p, i2m_gidx_t gid)
+/* The exact conflict test (with the perturbation) of the tet whose vertices have local
+ * numbers l[] (positively oriented), for what the cavity's bound could not certify. */
+static I2M_NOINLINE int conflict_exact(const i2m_dt_ctx_t *ctx, const uint32_t l[4], const double *p,
+                                       i2m_gidx_t gid)
 {
   const double *R = ctx->rows;
-  const double *ra = R + 4 * l[0], *rb = R + 4 * l[1], *rc = R + 4 * l[2], *rd = R + 4 * l[3];
-  const double det = i2m_insphere_det_rows(ra, rb, rc, rd);
-  if (I2M_LIKELY(fabs(det) > ctx->isp_bound)) return flip * ((det > 0.0) - (det < 0.0));
-  int s = i2m_insphere_filter_rows(ra, rb, rc, rd);
-  if (s != 0) return flip * s;
+  int s = i2m_insphere_filter_rows(R + 4 * l[0], R + 4 * l[1], R + 4 * l[2], R + 4 * l[3]);
+  if (s != 0) return s;
   const i2m_dt_t *dt = ctx->dt;
   const uint32_t *H = ctx->held;
-  return flip * i2m_insphere_sos_exact(i2m_dt_xyz(dt, H[l[0]]), i2m_dt_xyz(dt, H[l[1]]), i2m_dt_xyz(dt, H[l[2]]),
-                                       i2m_dt_xyz(dt, H[l[3]]), p, i2m_dt_gid(dt, H[l[0]]), i2m_dt_gid(dt, H[l[1]]),
-                                       i2m_dt_gid(dt, H[l[2]]), i2m_dt_gid(dt, H[l[3]]), gid);
+  return i2m_insphere_sos_exact(i2m_dt_xyz(dt, H[l[0]]), i2m_dt_xyz(dt, H[l[1]]), i2m_dt_xyz(dt, H[l[2]]),
+                                i2m_dt_xyz(dt, H[l[3]]), p, i2m_dt_gid(dt, H[l[0]]), i2m_dt_gid(dt, H[l[1]]),
+                                i2m_dt_gid(dt, H[l[2]]), i2m_dt_gid(dt, H[l[3]]), gid);
 }
 
-static inline bool row_is_zero(const i2m_dt_ctx_t *ctx, uint32_t l) { return ctx->rows[4 * (size_t)l + 3] == 0.0; }
-
-static inline i2m_dt_status_t cavity_push(i2m_dt_ctx_t *ctx, uint32_t t, const uint32_t *l)
+/* Conflict test of a positive tet given by its local numbers: > 0 when p is in its ball. */
+static I2M_INLINE int conflict(const i2m_dt_ctx_t *ctx, const uint32_t l[4], const double *p, i2m_gidx_t gid)
 {
-  if (I2M_UNLIKELY(ctx->ncav == ctx->cap_cav) && ctx_cavity_room(ctx, ctx->ncav + 1) != I2M_OK) return I2M_DT_FULL;
-  memcpy(ctx->cavl + 4 * (size_t)ctx->ncav, l, 4 * sizeof *l);
-  ctx->cav[ctx->ncav++] = t;
-  meta_store(ctx->dt, t, i2m_dt_meta(ctx->dt, t) | I2M_TM_MARK);
-  return I2M_DT_OK;
+  const double *R = ctx->rows;
+  const double det = i2m_insphere_det_rows(R + 4 * l[0], R + 4 * l[1], R + 4 * l[2], R + 4 * l[3]);
+  if (I2M_LIKELY(fabs(det) > ctx->isp_bound)) return (det > 0.0) - (det < 0.0);
+  return conflict_exact(ctx, l, p, gid);
+}
+
+/* The same for tet c (local numbers cl) with its vertex i replaced by local vertex w: the
+ * neighbour across face i, negatively oriented, so < 0 when p is in its ball. */
+static I2M_INLINE int conflict_across(const i2m_dt_ctx_t *ctx, const uint32_t cl[4], uint32_t i, uint32_t w,
+                                      const double *p, i2m_gidx_t gid)
+{
+  const double *R = ctx->rows;
+  const double *r[4] = {R + 4 * cl[0], R + 4 * cl[1], R + 4 * cl[2], R + 4 * cl[3]};
+  r[i] = R + 4 * w;
+  const double det = i2m_insphere_det_rows(r[0], r[1], r[2], r[3]);
+  if (I2M_LIKELY(fabs(det) > ctx->isp_bound)) return (det > 0.0) - (det < 0.0);
+  uint32_t fl[4] = {cl[0], cl[1], cl[2], cl[3]};
+  fl[i] = w;
+  return conflict_exact(ctx, fl, p, gid);
+}
+
+static inline bool row_is_origin(const i2m_dt_ctx_t *ctx, uint32_t l)
+{
+  const double *r = ctx->rows + 4 * (size_t)l;
+  return (r[0] == 0.0) & (r[1] == 0.0) & (r[2] == 0.0); /* x - p is exact only for x == p */
 }
 
 static I2M_NOINLINE i2m_dt_status_t boundary_grow(i2m_dt_ctx_t *ctx)
@@ -110,114 +131,169 @@ static I2M_NOINLINE i2m_dt_status_t boundary_grow(i2m_dt_ctx_t *ctx)
   return I2M_DT_OK;
 }
 
-static inline i2m_dt_status_t boundary_push(i2m_dt_ctx_t *ctx, uint32_t t, uint32_t i, uint32_t out, const uint32_t *l)
+static I2M_INLINE i2m_dt_status_t boundary_push(i2m_dt_ctx_t *ctx, uint32_t ki, uint32_t out)
 {
   if (I2M_UNLIKELY(ctx->nbnd == ctx->cap_bnd) && boundary_grow(ctx) != I2M_DT_OK) return I2M_DT_FULL;
-  i2m_dt_bface_t *b = &ctx->bnd[ctx->nbnd++];
-  b->t = t;
-  b->i = i;
-  b->out = out;
-  memcpy(b->v, ctx->dt->tv + 4 * (size_t)t, sizeof b->v);
-  memcpy(b->l, l, sizeof b->l);
+  ctx->bnd[ctx->nbnd++] = (i2m_dt_bface_t){ki, out};
   return I2M_DT_OK;
+}
+
+static I2M_INLINE i2m_dt_status_t cavity_push(i2m_dt_ctx_t *ctx, uint32_t t, const uint32_t l[4])
+{
+  if (I2M_UNLIKELY(ctx->ncav == ctx->cap_cav) && ctx_cavity_room(ctx, ctx->ncav + 1) != I2M_OK) return I2M_DT_FULL;
+  memcpy(ctx->cavl + 4 * (size_t)ctx->ncav, l, 4 * sizeof *l);
+  ctx->cav[ctx->ncav++] = t;
+  meta_store(ctx->dt, t, i2m_dt_meta(ctx->dt, t) | I2M_TM_MARK);
+  return I2M_DT_OK;
+}
+
+/* Face i of the k-th cavity tet c (local numbers cl): the neighbour across it joins the
+ * cavity when p is in its ball, else the face is a boundary face.  The neighbour is c with
+ * vertex i replaced by its apex, negatively oriented; the local numbers of its other
+ * vertices are looked up only when it joins.  Inlined with a constant i. */
+static I2M_INLINE i2m_dt_status_t cavity_visit(i2m_dt_ctx_t *ctx, uint32_t k, uint32_t c, const uint32_t cl[4],
+                                           uint32_t i, const double *p, i2m_gidx_t gid)
+{
+  i2m_dt_t *dt = ctx->dt;
+  const uint32_t n = dt->tn[4 * (size_t)c + i];
+  if (I2M_UNLIKELY(n == I2M_DT_NONE)) return boundary_push(ctx, k << 2 | i, n); /* box hull */
+  const uint32_t u = n >> 2, j = n & 3;
+  const uint32_t m = i2m_dt_meta(dt, u);
+  if (m & I2M_TM_MARK) return I2M_DT_OK; /* inside the cavity: not a boundary face */
+  const uint32_t *uv = dt->tv + 4 * (size_t)u;
+  const int64_t lw = local_vertex(ctx, uv[j], p);
+  if (I2M_UNLIKELY(lw < 0)) return lw == -1 ? I2M_DT_ROLLBACK : I2M_DT_FULL;
+  if (conflict_across(ctx, cl, i, (uint32_t)lw, p, gid) >= 0) return boundary_push(ctx, k << 2 | i, n);
+  if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
+  if (row_is_origin(ctx, (uint32_t)lw)) return I2M_DT_DUPLICATE;
+  uint32_t ul[4] = {local_of(dt, uv[0]), local_of(dt, uv[1]), local_of(dt, uv[2]), local_of(dt, uv[3])};
+  return cavity_push(ctx, u, ul);
 }
 
 /* Breadth-first search of the tets whose circumballs hold p, from a seed in conflict.  Every
- * vertex met gets a local index (and, in threaded runs, is locked); the outside tets'
- * vertices on the boundary faces are cavity vertices, so they are locked too. */
+ * vertex met gets a local number (and, in threaded runs, is locked); the outside tets'
+ * apexes are locked too, as the new tets' neighbours will change. */
 static i2m_dt_status_t cavity_search(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid)
 {
-  i2m_dt_t *dt = ctx->dt;
-  const uint32_t *tn = dt->tn, *tv = dt->tv;
   for (uint32_t k = 0; k < ctx->ncav; k++) {
-    uint32_t c = ctx->cav[k];
+    const uint32_t c = ctx->cav[k];
     uint32_t cl[4];
     memcpy(cl, ctx->cavl + 4 * (size_t)k, sizeof cl);
-    for (uint32_t i = 0; i < 4; i++) {
-      uint32_t n = tn[4 * c + i];
-      i2m_dt_status_t st;
-      if (n == I2M_DT_NONE) { /* box hull: always a boundary face */
-        if ((st = boundary_push(ctx, c, i, n, cl)) != I2M_DT_OK) return st;
-        continue;
-      }
-      uint32_t u = n >> 2, j = n & 3;
-      uint32_t m = i2m_dt_meta(dt, u);
-      if (m & I2M_TM_MARK) continue;
-      const uint32_t *uv = tv + 4 * (size_t)u;
-      int64_t lw = local_vertex(ctx, uv[j], p);
-      if (lw < 0) return lw == -1 ? I2M_DT_ROLLBACK : I2M_DT_FULL;
-      /* c with its vertex i replaced by u's apex is u, negatively oriented: no need to look
-       * up the local indices of u's other vertices unless u joins the cavity */
-      uint32_t fl[4];
-      memcpy(fl, cl, sizeof fl);
-      fl[i] = (uint32_t)lw;
-      if (conflict(ctx, fl, -1, p, gid) > 0) {
-        if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
-        if (row_is_zero(ctx, (uint32_t)lw)) return I2M_DT_DUPLICATE;
-        uint32_t ul[4];
-        for (uint32_t s = 0; s < 4; s++) ul[s] = s == j ? (uint32_t)lw : local_of(dt, uv[s]);
-        if ((st = cavity_push(ctx, u, ul)) != I2M_DT_OK) return st;
-      } else if ((st = boundary_push(ctx, c, i, n, cl)) != I2M_DT_OK) {
-        return st;
-      }
-    }
+    i2m_dt_status_t st;
+    if ((st = cavity_visit(ctx, k, c, cl, 0, p, gid)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(ctx, k, c, cl, 1, p, gid)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(ctx, k, c, cl, 2, p, gid)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(ctx, k, c, cl, 3, p, gid)) != I2M_DT_OK) return st;
   }
   return I2M_DT_OK;
 }
 
-/* Links face j of new tet t, whose edge opposite the new vertex has local ends (la, lb). */
-static inline void link_local(i2m_dt_ctx_t *ctx, uint32_t t, uint32_t j, uint32_t la, uint32_t lb)
-{
-  uint32_t *e = ctx->etab2 + (la < lb ? la * ctx->lcap + lb : lb * ctx->lcap + la);
-  uint32_t face = 4 * t + j;
-  if (*e == I2M_DT_NONE) {
-    *e = face;
-  } else { /* the second visit: link both ways and leave the entry clean */
-    ctx->dt->tn[face] = *e;
-    ctx->dt->tn[*e] = face;
-    *e = I2M_DT_NONE;
-  }
-}
+/* ---- refill ---- */
 
-/* The direct edge table fits cavities of up to 256 vertices; larger ones use the hash. */
-#define LOCAL_TABLE_MAX 256u
+/* Adjacency of the new tets.  New tet k (boundary face k with p at slot i) has three faces
+ * through p; face j meets the cavity boundary in an edge, which the oriented boundary of the
+ * tet runs as (p, a, b) with (a, b) = EDGE_DIR[i][j] (the induced orientation (-1)^j of the
+ * face, rotated to start at p).  The tet across that face runs the same edge as (b, a), so a
+ * table indexed by directed edges of local numbers links every face: the first pass files
+ * each face under (a, b), the second reads its partner under (b, a).  Every edge read was
+ * filed in the same insertion, so the table never needs clearing.  It fits cavities whose
+ * vertices have local numbers below EDGE_TABLE_SIDE and up to 16383 boundary faces; larger
+ * ones use the hash (ctx_edge_link). */
+static const uint8_t EDGE_DIR[4][4][2] = {{{0, 0}, {3, 2}, {1, 3}, {2, 1}},
+                                          {{2, 3}, {0, 0}, {3, 0}, {0, 2}},
+                                          {{3, 1}, {0, 3}, {0, 0}, {1, 0}},
+                                          {{1, 2}, {2, 0}, {0, 1}, {0, 0}}};
+#define EDGE_TABLE_SIDE 64u
 
-static bool edge_table_ready(i2m_dt_ctx_t *ctx)
+static bool edge_table_ready(i2m_dt_ctx_t *ctx, uint32_t nb)
 {
-  if (ctx->nheld > LOCAL_TABLE_MAX) return false;
-  if (ctx->nheld > ctx->lcap) {
-    uint32_t cap = ctx->lcap ? ctx->lcap : 64;
-    while (cap < ctx->nheld) cap *= 2;
-    uint32_t *tab = NULL;
-    if (i2m_malloc((size_t)cap * cap, sizeof *tab, &tab) != I2M_OK) return false;
-    memset(tab, 0xFF, (size_t)cap * cap * sizeof *tab);
-    i2m_free(&ctx->etab2);
-    ctx->etab2 = tab;
-    ctx->lcap = cap;
-  }
+  if (ctx->nheld > EDGE_TABLE_SIDE || nb >= 0x4000u) return false;
+  if (!ctx->etab2 && i2m_malloc(EDGE_TABLE_SIDE * EDGE_TABLE_SIDE, sizeof *ctx->etab2, &ctx->etab2) != I2M_OK)
+    return false;
   return true;
 }
 
-/* Replaces the cavity by the tets joining p to its boundary faces.  Cavity slots are
- * reused first; the rest of the cavity's slots go to the context's pool. */
-static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid, uint8_t kind,
-                                   uint32_t *vout)
+static I2M_INLINE uint16_t *edge_entry(const i2m_dt_ctx_t *ctx, uint32_t a, uint32_t b)
+{
+  return ctx->etab2 + (a * EDGE_TABLE_SIDE + b);
+}
+
+/* The three slots other than i. */
+static const uint8_t OTHER3[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
+
+/* New tet k: boundary face b (face i of its cavity tet) joined to the new vertex v.  Inlined
+ * with a constant i, so every slot index is a constant. */
+static I2M_INLINE uint32_t fill_tet(i2m_dt_ctx_t *ctx, uint32_t k, i2m_dt_bface_t b, uint32_t i, uint32_t v)
 {
   i2m_dt_t *dt = ctx->dt;
-  uint32_t nb = ctx->nbnd, nc = ctx->ncav;
-  uint32_t extra = nb > nc ? nb - nc : 0;
-  if (!ctx_ensure_slots(ctx, extra, 1)) return I2M_DT_FULL;
-  if (ctx_grow_u32(&ctx->newt, &ctx->cap_new, nb) != I2M_OK) return I2M_DT_FULL;
-  if (nc > nb && ctx_grow_u32(&ctx->pool, &ctx->cap_pool, ctx->npool + (nc - nb)) != I2M_OK) return I2M_DT_FULL;
-  if (ctx->locking && ctx_hold_room(ctx) != I2M_OK) return I2M_DT_FULL;
-  bool direct = edge_table_ready(ctx);
-  if (!direct && ctx_edges_begin(ctx, 3 * nb) != I2M_OK) return I2M_DT_FULL;
+  const uint32_t *cl = ctx->cavl + 4 * (size_t)(b.ki >> 2), *H = ctx->held, t = ctx->newt[k];
+  meta_store(dt, t, meta_reborn(i2m_dt_meta(dt, t)));
+  uint32_t *tv = dt->tv + 4 * (size_t)t;
+  for (uint32_t s = 0; s < 4; s++) tv[s] = s == i ? v : H[cl[s]];
+  dt->tn[4 * (size_t)t + i] = b.out;
+  if (b.out != I2M_DT_NONE) dt->tn[b.out] = 4 * t + i;
+  dt->vtet[tv[OTHER3[i][0]]] = t;
+  dt->vtet[tv[OTHER3[i][1]]] = t;
+  dt->vtet[tv[OTHER3[i][2]]] = t;
+  return t;
+}
 
+/* Files face j of new tet k under its directed boundary edge (see EDGE_DIR). */
+static I2M_INLINE void file_face(i2m_dt_ctx_t *ctx, uint32_t k, const uint32_t *cl, uint32_t i, uint32_t j)
+{
+  *edge_entry(ctx, cl[EDGE_DIR[i][j][0]], cl[EDGE_DIR[i][j][1]]) = (uint16_t)(k << 2 | j);
+}
+
+/* Face j of new tet t from the partner filed under the reversed edge. */
+static I2M_INLINE void link_face(i2m_dt_ctx_t *ctx, uint32_t t, const uint32_t *cl, uint32_t i, uint32_t j)
+{
+  const uint32_t e = *edge_entry(ctx, cl[EDGE_DIR[i][j][1]], cl[EDGE_DIR[i][j][0]]);
+  ctx->dt->tn[4 * (size_t)t + j] = 4 * ctx->newt[e >> 2] + (e & 3);
+}
+
+static I2M_INLINE void fill_direct(i2m_dt_ctx_t *ctx, uint32_t k, i2m_dt_bface_t b, uint32_t i, uint32_t v)
+{
+  fill_tet(ctx, k, b, i, v);
+  const uint32_t *cl = ctx->cavl + 4 * (size_t)(b.ki >> 2);
+  file_face(ctx, k, cl, i, OTHER3[i][0]);
+  file_face(ctx, k, cl, i, OTHER3[i][1]);
+  file_face(ctx, k, cl, i, OTHER3[i][2]);
+}
+
+static I2M_INLINE void link_direct(i2m_dt_ctx_t *ctx, uint32_t k, uint32_t ki, uint32_t i)
+{
+  const uint32_t *cl = ctx->cavl + 4 * (size_t)(ki >> 2), t = ctx->newt[k];
+  link_face(ctx, t, cl, i, OTHER3[i][0]);
+  link_face(ctx, t, cl, i, OTHER3[i][1]);
+  link_face(ctx, t, cl, i, OTHER3[i][2]);
+}
+
+/* The new tets of a cavity too large for the edge table: adjacency through the hash. */
+static I2M_NOINLINE void fill_hashed(i2m_dt_ctx_t *ctx, uint32_t v)
+{
+  for (uint32_t k = 0; k < ctx->nbnd; k++) {
+    const i2m_dt_bface_t b = ctx->bnd[k];
+    const uint32_t i = b.ki & 3, t = fill_tet(ctx, k, b, i, v);
+    for (uint32_t x = 0; x < 3; x++) ctx_edge_link(ctx, t, i, OTHER3[i][x]);
+  }
+}
+
+/* Room for the refill: slots, the new-tet list, the pool, the lock of the new vertex. */
+static bool fill_room(i2m_dt_ctx_t *ctx, uint32_t nb, uint32_t nc)
+{
+  return ctx_ensure_slots(ctx, nb > nc ? nb - nc : 0, 1) && ctx_grow_u32(&ctx->newt, &ctx->cap_new, nb) == I2M_OK &&
+         (nc <= nb || ctx_grow_u32(&ctx->pool, &ctx->cap_pool, ctx->npool + (nc - nb)) == I2M_OK) &&
+         (!ctx->locking || ctx_hold_room(ctx) == I2M_OK);
+}
+
+/* The new vertex's slot (locked in threaded runs, until the caller unlocks). */
+static uint32_t new_vertex(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid, uint8_t kind)
+{
+  i2m_dt_t *dt = ctx->dt;
   uint32_t v;
-  if (ctx->locking) { /* the new vertex is ours until the caller unlocks */
+  if (ctx->locking) {
     v = ctx_vertex_slot_locked(ctx, ctx->owner | (ctx->nheld << I2M_DT_OWNER_BITS));
-    if (v == I2M_DT_NONE) return I2M_DT_FULL;
-    ctx->rowstamp[ctx->nheld] = ctx->epoch - 1;
+    if (v == I2M_DT_NONE) return v;
     ctx->held[ctx->nheld++] = v;
   } else {
     v = ctx_vertex_slot(ctx);
@@ -228,26 +304,45 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   x[2] = p[2];
   set_gid(dt, v, gid);
   dt->vkind[v] = kind;
-  dt->vtet[v] = ctx->cav[0];
-  uint32_t *tvs = dt->tv, *tns = dt->tn;
-  ctx->nnew = 0;
-  for (uint32_t k = 0; k < nb; k++) {
-    const i2m_dt_bface_t *b = &ctx->bnd[k];
-    uint32_t t = k < nc ? ctx->cav[k] : ctx_tet_slot(ctx);
-    meta_store(dt, t, meta_reborn(i2m_dt_meta(dt, t)));
-    uint32_t *tv = tvs + 4 * (size_t)t;
-    memcpy(tv, b->v, sizeof b->v);
-    tv[b->i] = v;
-    tns[4 * (size_t)t + b->i] = b->out;
-    if (b->out != I2M_DT_NONE) tns[b->out] = 4 * t + b->i;
-    for (uint32_t j = 0; j < 4; j++) {
-      if (j == b->i) continue;
-      dt->vtet[b->v[j]] = t;
-      if (direct) link_local(ctx, t, j, b->l[I2M_OTHER2[b->i][j][0]], b->l[I2M_OTHER2[b->i][j][1]]);
-      else ctx_edge_link(ctx, t, b->i, j);
+  return v;
+}
+
+/* Replaces the cavity by the tets joining p to its boundary faces.  Cavity slots are reused
+ * first; the rest of the cavity's slots go to the context's pool. */
+static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid, uint8_t kind, uint32_t *vout)
+{
+  i2m_dt_t *dt = ctx->dt;
+  const uint32_t nb = ctx->nbnd, nc = ctx->ncav;
+  if (!fill_room(ctx, nb, nc)) return I2M_DT_FULL;
+  const bool direct = edge_table_ready(ctx, nb);
+  if (!direct && ctx_edges_begin(ctx, 3 * nb) != I2M_OK) return I2M_DT_FULL;
+  const uint32_t v = new_vertex(ctx, p, gid, kind);
+  if (v == I2M_DT_NONE) return I2M_DT_FULL;
+  for (uint32_t k = 0; k < nb; k++) ctx->newt[k] = k < nc ? ctx->cav[k] : ctx_tet_slot(ctx);
+  ctx->nnew = nb;
+  if (direct) {
+    for (uint32_t k = 0; k < nb; k++) {
+      const i2m_dt_bface_t b = ctx->bnd[k];
+      switch (b.ki & 3) { /* constant slot indices in each case */
+        case 0: fill_direct(ctx, k, b, 0, v); break;
+        case 1: fill_direct(ctx, k, b, 1, v); break;
+        case 2: fill_direct(ctx, k, b, 2, v); break;
+        default: fill_direct(ctx, k, b, 3, v); break;
+      }
     }
-    ctx->newt[ctx->nnew++] = t;
+    for (uint32_t k = 0; k < nb; k++) {
+      const uint32_t ki = ctx->bnd[k].ki;
+      switch (ki & 3) {
+        case 0: link_direct(ctx, k, ki, 0); break;
+        case 1: link_direct(ctx, k, ki, 1); break;
+        case 2: link_direct(ctx, k, ki, 2); break;
+        default: link_direct(ctx, k, ki, 3); break;
+      }
+    }
+  } else {
+    fill_hashed(ctx, v);
   }
+  dt->vtet[v] = ctx->newt[0];
   for (uint32_t k = nb; k < nc; k++) { /* cavity slots left over: dead */
     uint32_t t = ctx->cav[k];
     meta_store(dt, t, meta_killed(i2m_dt_meta(dt, t)));
@@ -260,34 +355,40 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   return I2M_DT_OK;
 }
 
+/* Numbers and locks the seed's vertices (threaded: read before the locks, verified after)
+ * and checks the seed: alive, unchanged, not frozen, p not one of its vertices, p in its
+ * ball.  Then it is the first cavity tet. */
+static i2m_dt_status_t cavity_seed(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid, uint32_t seed,
+                                   uint32_t seed_meta)
+{
+  i2m_dt_t *dt = ctx->dt;
+  const uint32_t *sv = dt->tv + 4 * (size_t)seed;
+  uint32_t v4[4], l4[4];
+  memcpy(v4, sv, sizeof v4);
+  for (int i = 0; i < 4; i++) {
+    int64_t l = local_vertex(ctx, v4[i], p);
+    if (l < 0) return l == -1 ? I2M_DT_ROLLBACK : I2M_DT_FULL;
+    l4[i] = (uint32_t)l;
+  }
+  if (ctx->locking && memcmp(v4, sv, sizeof v4) != 0) return I2M_DT_STALE;
+  uint32_t m = i2m_dt_meta(dt, seed);
+  if ((m & I2M_TM_DEAD) || (seed_meta != I2M_DT_NONE && m != seed_meta)) return I2M_DT_STALE;
+  if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
+  for (int i = 0; i < 4; i++)
+    if (row_is_origin(ctx, l4[i])) return I2M_DT_DUPLICATE;
+  if (conflict(ctx, l4, p, gid) <= 0) return I2M_DT_NOT_IN_CONFLICT;
+  return cavity_push(ctx, seed, l4);
+}
+
 i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t gid, uint8_t kind,
                               uint32_t seed, uint32_t seed_meta, uint32_t *vout)
 {
-  i2m_dt_t *dt = ctx->dt;
   I2M_CHECK_ABORT(ctx->locking || ctx->nheld == 0, "i2m_dt_insert: the previous operation's vertices are still held");
-  if (++ctx->epoch == 0) { /* wrapped: every row stamp is stale */
-    memset(ctx->rowstamp, 0, ctx->cap_held * sizeof *ctx->rowstamp);
-    ctx->epoch = 1;
-  }
   ctx->ncav = ctx->nbnd = ctx->nnew = 0;
   ctx->rmax[0] = ctx->rmax[1] = ctx->rmax[2] = 0.0;
   ctx->isp_bound = (double)INFINITY;
-  const uint32_t *sv = dt->tv + 4 * (size_t)seed;
-  uint32_t v4[4], l4[4];
-  memcpy(v4, sv, sizeof v4); /* threaded: read before the locks, verified below */
-  for (int i = 0; i < 4; i++) {
-    int64_t l = local_vertex(ctx, v4[i], p);
-    if (l < 0) return cavity_abandon(ctx, l == -1 ? I2M_DT_ROLLBACK : I2M_DT_FULL);
-    l4[i] = (uint32_t)l;
-  }
-  if (ctx->locking && memcmp(v4, sv, sizeof v4) != 0) return cavity_abandon(ctx, I2M_DT_STALE);
-  uint32_t m = i2m_dt_meta(dt, seed);
-  if ((m & I2M_TM_DEAD) || (seed_meta != I2M_DT_NONE && m != seed_meta)) return cavity_abandon(ctx, I2M_DT_STALE);
-  if (m & I2M_TM_FROZEN) return cavity_abandon(ctx, I2M_DT_FROZEN);
-  for (int i = 0; i < 4; i++)
-    if (row_is_zero(ctx, l4[i])) return cavity_abandon(ctx, I2M_DT_DUPLICATE);
-  if (conflict(ctx, l4, 1, p, gid) <= 0) return cavity_abandon(ctx, I2M_DT_NOT_IN_CONFLICT);
-  i2m_dt_status_t st = cavity_push(ctx, seed, l4);
+  for (uint32_t k = 0; k < ctx->nheld; k++) row_make(ctx, k, ctx->held[k], p); /* locked before */
+  i2m_dt_status_t st = cavity_seed(ctx, p, gid, seed, seed_meta);
   if (st == I2M_DT_OK) st = cavity_search(ctx, p, gid);
   if (st == I2M_DT_OK) st = cavity_fill(ctx, p, gid, kind, vout);
   if (st != I2M_DT_OK) return cavity_abandon(ctx, st);
@@ -295,6 +396,8 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
   if (!ctx->locking) i2m_dt_unlock_all(ctx); /* sequential: only the local numbering to undo */
   return I2M_DT_OK;
 }
+
+/* ---- point location ---- */
 
 static inline uint32_t rng_next(i2m_dt_ctx_t *ctx)
 {
@@ -306,19 +409,58 @@ static inline uint32_t rng_next(i2m_dt_ctx_t *ctx)
   return (uint32_t)(x >> 32);
 }
 
+/* orient3d of tet v with each vertex i in turn replaced by p (o[i] < 0: p is beyond face i),
+ * in floating point, from the vertices translated by p: replacing vertex i leaves +-det of the
+ * other three rows, and the four determinants share their 2x2 minors.  Each is the same
+ * expression as i2m_det3_rows, so *bound (from the largest translated coordinates) certifies
+ * every sign it exceeds. */
+static I2M_INLINE void face_orients(const i2m_dt_t *dt, const uint32_t *v, const double *p, double o[4], double *bound)
+{
+  double d[4][3], mx = 0, my = 0, mz = 0;
+  for (int k = 0; k < 4; k++) {
+    const double *x = i2m_dt_xyz(dt, v[k]);
+    d[k][0] = x[0] - p[0];
+    d[k][1] = x[1] - p[1];
+    d[k][2] = x[2] - p[2];
+    mx = fabs(d[k][0]) > mx ? fabs(d[k][0]) : mx;
+    my = fabs(d[k][1]) > my ? fabs(d[k][1]) : my;
+    mz = fabs(d[k][2]) > mz ? fabs(d[k][2]) : mz;
+  }
+  const double m01 = d[0][0] * d[1][1] - d[1][0] * d[0][1], m02 = d[0][0] * d[2][1] - d[2][0] * d[0][1];
+  const double m03 = d[0][0] * d[3][1] - d[3][0] * d[0][1], m12 = d[1][0] * d[2][1] - d[2][0] * d[1][1];
+  const double m13 = d[1][0] * d[3][1] - d[3][0] * d[1][1], m23 = d[2][0] * d[3][1] - d[3][0] * d[2][1];
+  o[0] = d[1][2] * m23 - d[2][2] * m13 + d[3][2] * m12;
+  o[1] = -(d[0][2] * m23 - d[2][2] * m03 + d[3][2] * m02);
+  o[2] = d[0][2] * m13 - d[1][2] * m03 + d[3][2] * m01;
+  o[3] = -(d[0][2] * m12 - d[1][2] * m02 + d[2][2] * m01);
+  *bound = i2m_orient3d_rows_bound(mx, my, mz);
+}
+
+/* Is p beyond face i of tet v (orient3d with vertex i replaced by p negative)?  o is the
+ * floating-point value, decided exactly when the bound does not certify it. */
+static inline bool beyond_face(const i2m_dt_t *dt, const uint32_t *v, uint32_t i, const double *p, double o,
+                               double bound)
+{
+  if (I2M_LIKELY(fabs(o) > bound)) return o < 0.0;
+  const double *q[4] = {i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3])};
+  q[i] = p;
+  return i2m_orient3d(q[0], q[1], q[2], q[3]) < 0;
+}
+
 uint32_t i2m_dt_locate(i2m_dt_ctx_t *ctx, const double p[3], uint32_t start)
 {
   const i2m_dt_t *dt = ctx->dt;
   uint32_t t = start, prev = I2M_DT_NONE;
   for (;;) {
     const uint32_t *v = dt->tv + 4 * (size_t)t;
-    uint32_t r = rng_next(ctx);
-    uint32_t next = I2M_DT_NONE;
+    double o[4], bound;
+    face_orients(dt, v, p, o, &bound);
+    uint32_t r = rng_next(ctx), next = I2M_DT_NONE;
     for (uint32_t k = 0; k < 4; k++) {
       uint32_t i = (r + k) & 3;
       uint32_t n = dt->tn[4 * t + i];
       if (n == I2M_DT_NONE || (n >> 2) == prev) continue;
-      if (tet_orient_replace(dt, v, (int)i, p) < 0) {
+      if (beyond_face(dt, v, i, p, o[i], bound)) {
         next = n >> 2;
         break;
       }

@@ -73,6 +73,8 @@ static void local_reset(struct i2m_dt_removal *rm)
     meta_store(loc, t, 0);
     for (int i = 0; i < 4; i++) loc->vtet[loc->tv[4 * t + i]] = t;
   }
+  /* every slot handed out since (used or still in the context's fresh range) is dead again */
+  for (uint32_t t = rm->nbox_tets; t < i2m_dt_ntets_slots(loc); t++) meta_store(loc, t, I2M_TM_DEAD);
   atomic_store_explicit(&loc->nt_atomic, rm->nbox_tets, memory_order_relaxed);
   atomic_store_explicit(&loc->nv_atomic, 8, memory_order_relaxed);
   loc->nfree_t = loc->nfree_v = 0;

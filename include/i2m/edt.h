@@ -30,6 +30,10 @@ typedef struct i2m_edt {
   int64_t lo[3], m[3];     /**< voxel box K: voxels lo .. lo+m-1 along each axis */
   double inv_m[3];         /**< 1 / m (index arithmetic without divisions) */
   double inv_spacing[3];   /**< 1 / spacing */
+  double diagonal;         /**< length of a voxel's diagonal (mm) */
+  double w2k[3][4];        /**< world -> voxel coordinates relative to K, + 1/2 (voxel v of K
+                                spans [v, v + 1) along each axis): u = w2k[.][0..2] p + w2k[.][3] */
+  double k2w[3][4];        /**< the inverse map: voxel coordinates relative to K -> world */
   int32_t *ft;             /**< owned: [m2][m1][m0] box-linear index of the nearest boundary
                                 voxel (the bits of feat_mask) and, when labels_packed, the
                                 voxel's label index above them (read with the accessors) */
@@ -53,21 +57,13 @@ static inline int i2m_edt_label_voxel(const i2m_edt_t *e, int64_t i, int64_t j, 
   return (int)((uint32_t)e->ft[(k * e->m[1] + j) * e->m[0] + i] >> e->label_shift);
 }
 
-/** Label index of a grid-frame point (the voxel that contains it; 0 outside the image). */
-static inline int i2m_edt_label_at(const i2m_edt_t *e, const double g[3])
-{
-  if (!e->labels_packed) return i2m_image_label_at(e->img, g);
-  int64_t idx[3];
-  return i2m_image_voxel_at(e->img, g, idx) ? i2m_edt_label_voxel(e, idx[0], idx[1], idx[2]) : 0;
-}
+/** Label index of a grid-frame point: the voxel that contains it, floor(g / spacing + 1/2)
+ *  along each axis (the mesher's one voxel rule), 0 outside the image. */
+int i2m_edt_label_at(const i2m_edt_t *e, const double g[3]);
 
-/** Label index of a world point. */
-static inline int i2m_edt_label_at_world(const i2m_edt_t *e, const double w[3])
-{
-  double g[3];
-  i2m_image_world_to_grid(e->img, w, g);
-  return i2m_edt_label_at(e, g);
-}
+/** Label index of a world point: the same voxel rule, in the form i2m_edt_probe_world uses
+ *  (so the two always agree). */
+int i2m_edt_label_at_world(const i2m_edt_t *e, const double w[3]);
 
 /** Computes the feature transform of @p img (OpenMP-parallel over scanlines).  An image
  *  without any interface gives a transform with nboundary = 0.  Not collective. */
@@ -83,6 +79,23 @@ double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, dou
 
 /** The same query with p and z in world coordinates (the mesher's frame). */
 double i2m_edt_closest_world(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2]);
+
+/** What the refinement asks about a point: its label and the closest interface point. */
+typedef struct {
+  int label;   /**< label index at the point (i2m_edt_label_at) */
+  bool near;   /**< an interface may lie within the distance asked for (certainly, when d2 is
+                    finite; false only when a lower bound rules it out) */
+  double d2;   /**< squared distance to the closest interface point; +inf when it was not
+                    asked for, lies farther than the bound, or there is no interface */
+  double z[3]; /**< the closest interface point (world), when d2 is finite */
+  int pair[2]; /**< label indices on its two sides, smaller first */
+} i2m_edt_probe_t;
+
+/** The label at world point p and whether an interface may lie within sqrt(max_d2) (a cheap
+ *  lower bound from the feature transform); with @p closest, also the closest interface point
+ *  when it lies within that distance (see i2m_edt_closest; INFINITY asks for it at any
+ *  distance).  One change of frame and one voxel lookup.  Thread safe. */
+void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, bool closest, i2m_edt_probe_t *out);
 
 /** Along the segment a -> b (world coordinates) whose end labels differ, a point where the
  *  label changes from a's, to within @p tol: returns it in x and the labels on its two

@@ -205,6 +205,30 @@ static void pack_labels(i2m_edt_t *e, int64_t nbox)
   e->labels_packed = true;
 }
 
+/* World <-> voxel coordinates relative to K: u_k = (R^T (p - origin))_k / s_k + 1/2 - lo_k,
+ * so that floor(u_k) is the voxel index along k minus lo_k (the mesher's voxel rule), and
+ * back, p = origin + R diag(s) (u + lo - 1/2). */
+static void set_voxel_maps(i2m_edt_t *e)
+{
+  const i2m_image_t *img = e->img;
+  for (int k = 0; k < 3; k++) {
+    double t = 0.5 - (double)e->lo[k];
+    for (int r = 0; r < 3; r++) {
+      e->w2k[k][r] = img->dir[r][k] / img->spacing[k];
+      t -= e->w2k[k][r] * img->origin[r];
+    }
+    e->w2k[k][3] = t;
+  }
+  for (int r = 0; r < 3; r++) {
+    double t = img->origin[r];
+    for (int k = 0; k < 3; k++) {
+      e->k2w[r][k] = img->dir[r][k] * img->spacing[k];
+      t += e->k2w[r][k] * ((double)e->lo[k] - 0.5);
+    }
+    e->k2w[r][3] = t;
+  }
+}
+
 i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
 {
   i2m_edt_t *e = NULL;
@@ -218,7 +242,10 @@ i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
     e->m[a] = hi[a] - e->lo[a] + 1;
     e->inv_m[a] = e->m[a] > 0 ? 1.0 / (double)e->m[a] : 0.0;
     e->inv_spacing[a] = 1.0 / img->spacing[a];
+    e->diagonal += img->spacing[a] * img->spacing[a];
   }
+  e->diagonal = sqrt(e->diagonal);
+  set_voxel_maps(e);
   int64_t nbox = e->m[0] * e->m[1] * e->m[2];
   if (nbox <= 0) { /* no foreground at all */
     *out = e;
@@ -261,7 +288,7 @@ void i2m_edt_destroy(i2m_edt_t **e)
 }
 
 /* Closest point to p on the faces between boundary voxel b (image index) and its
- * differently-labelled 6-neighbours. */
+ * differently-labelled 6-neighbours: the general path, through the label oracle. */
 static double closest_on_voxel_faces(const i2m_edt_t *e, const int64_t b[3], const double p[3], double z[3],
                                      int pair[2])
 {
@@ -295,45 +322,117 @@ static double closest_on_voxel_faces(const i2m_edt_t *e, const int64_t b[3], con
   return best;
 }
 
-double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2])
+/* The same with labels packed in the words: boundary voxel f (box-linear index, box
+ * coordinates fb) and its neighbours are read from the transform itself, one word each
+ * (outside K every label is 0). */
+static double closest_on_faces_packed(const i2m_edt_t *e, uint32_t f, const uint32_t fb[3], const double p[3],
+                                      double z[3], int pair[2])
 {
-  if (e->nboundary == 0) {
-    memcpy(z, p, 3 * sizeof *z);
-    if (pair) pair[0] = pair[1] = 0;
-    return INFINITY;
-  }
   const i2m_image_t *img = e->img;
-  int64_t c[3];
+  const int64_t stride[3] = {1, e->m[0], e->m[0] * e->m[1]};
+  const int lb = (int)((uint32_t)e->ft[f] >> e->label_shift);
+  double best = INFINITY, c[3], q0[3];
+  for (int a = 0; a < 3; a++) {
+    c[a] = (double)(e->lo[a] + fb[a]) * img->spacing[a];
+    double h = 0.5 * img->spacing[a], lo = c[a] - h, hi = c[a] + h;
+    q0[a] = p[a] < lo ? lo : p[a] > hi ? hi : p[a];
+  }
+  for (int ax = 0; ax < 3; ax++)
+    for (int dir = -1; dir <= 1; dir += 2) {
+      int64_t nb = (int64_t)fb[ax] + dir;
+      int ln = nb < 0 || nb >= e->m[ax] ? 0 : (int)((uint32_t)e->ft[(int64_t)f + dir * stride[ax]] >> e->label_shift);
+      if (ln == lb) continue;
+      double q[3] = {q0[0], q0[1], q0[2]};
+      q[ax] = c[ax] + dir * 0.5 * img->spacing[ax];
+      double d2 = i2m_sq(p[0] - q[0]) + i2m_sq(p[1] - q[1]) + i2m_sq(p[2] - q[2]);
+      if (d2 < best) {
+        best = d2;
+        memcpy(z, q, sizeof q);
+        pair[0] = lb < ln ? lb : ln;
+        pair[1] = lb < ln ? ln : lb;
+      }
+    }
+  return best;
+}
+
+/* Where grid-frame point p falls: u[a] = p / spacing + 1/2 (its voxel is floor(u), the
+ * mesher's one voxel rule), and c, the voxel of its projection on the box K; false when p
+ * lies outside K. */
+static inline bool edt_locate(const i2m_edt_t *e, const double p[3], double u[3], int64_t c[3])
+{
   bool inside = true;
-  for (int a = 0; a < 3; a++) { /* voxel of p's projection on the box K (no floor(): a call) */
-    double u = p[a] * e->inv_spacing[a] + 0.5;
+  for (int a = 0; a < 3; a++) { /* no floor(): a call */
+    u[a] = p[a] * e->inv_spacing[a] + 0.5;
     int64_t lo = e->lo[a], hi = e->lo[a] + e->m[a] - 1;
-    if (!(u >= (double)lo)) {
+    if (!(u[a] >= (double)lo)) {
       c[a] = lo;
       inside = false;
-    } else if (u >= (double)(hi + 1)) {
+    } else if (u[a] >= (double)(hi + 1)) {
       c[a] = hi;
       inside = false;
     } else {
-      c[a] = (int64_t)u;
+      c[a] = (int64_t)u[a];
     }
   }
-  uint32_t f = i2m_edt_feature(e, ((c[2] - e->lo[2]) * e->m[1] + (c[1] - e->lo[1])) * e->m[0] + (c[0] - e->lo[0]));
-  uint32_t fc[3];
-  box_coords(e, f, fc);
-  int64_t b[3] = {e->lo[0] + fc[0], e->lo[1] + fc[1], e->lo[2] + fc[2]};
-  if (inside && isfinite(max_d2)) {
-    /* b is the boundary voxel nearest to the centre of p's voxel; every interface point is
-     * at least |centre(c) - centre(b)| - 2 x the half diagonal away from p */
-    double dc2 = 0, h2 = 0;
+  return inside;
+}
+
+/* Can an interface point lie within sqrt(max_d2) of p?  f is the feature of voxel c (p's
+ * voxel, or for p outside K the voxel of its projection on K), fb its box coordinates.  For p
+ * inside K, b is the boundary voxel nearest to the centre of c, so every interface point is
+ * at least |centre(c) - centre(b)| - one voxel diagonal away; for p outside K, at least its
+ * distance to K (which holds every interface). */
+static bool maybe_within(const i2m_edt_t *e, const double p[3], const int64_t c[3], bool inside, const uint32_t fb[3],
+                         double max_d2)
+{
+  if (!isfinite(max_d2)) return true;
+  const double *s = e->img->spacing;
+  if (!inside) {
+    double dk2 = 0;
     for (int a = 0; a < 3; a++) {
-      dc2 += i2m_sq((double)(c[a] - b[a]) * img->spacing[a]);
-      h2 += 0.25 * img->spacing[a] * img->spacing[a];
+      double lo = ((double)e->lo[a] - 0.5) * s[a], hi = ((double)(e->lo[a] + e->m[a]) - 0.5) * s[a];
+      double d = p[a] < lo ? lo - p[a] : p[a] > hi ? p[a] - hi : 0.0;
+      dk2 += d * d;
     }
-    double lb = sqrt(dc2) - 2.0 * sqrt(h2);
-    if (lb > 0 && lb * lb > max_d2) return INFINITY;
+    return dk2 <= max_d2;
   }
+  double dc2 = 0;
+  for (int a = 0; a < 3; a++) dc2 += i2m_sq((double)(c[a] - e->lo[a] - fb[a]) * s[a]);
+  const double reach = e->diagonal + sqrt(max_d2);
+  return dc2 <= reach * reach;
+}
+
+static inline uint32_t feature_of_voxel(const i2m_edt_t *e, const int64_t c[3])
+{
+  return i2m_edt_feature(e, ((c[2] - e->lo[2]) * e->m[1] + (c[1] - e->lo[1])) * e->m[0] + (c[0] - e->lo[0]));
+}
+
+/* The closest point to p on the faces of boundary voxel f (box coordinates fb). */
+static double closest_on_feature(const i2m_edt_t *e, uint32_t f, const uint32_t fb[3], const double p[3], double z[3],
+                                 int pair[2])
+{
+  if (e->labels_packed) return closest_on_faces_packed(e, f, fb, p, z, pair);
+  const int64_t b[3] = {e->lo[0] + fb[0], e->lo[1] + fb[1], e->lo[2] + fb[2]};
   return closest_on_voxel_faces(e, b, p, z, pair);
+}
+
+double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2])
+{
+  int tmp[2];
+  if (!pair) pair = tmp;
+  if (e->nboundary == 0) {
+    memcpy(z, p, 3 * sizeof *z);
+    pair[0] = pair[1] = 0;
+    return INFINITY;
+  }
+  double u[3];
+  int64_t c[3];
+  uint32_t fb[3];
+  bool inside = edt_locate(e, p, u, c);
+  const uint32_t f = feature_of_voxel(e, c);
+  box_coords(e, f, fb);
+  if (inside && !maybe_within(e, p, c, inside, fb, max_d2)) return INFINITY;
+  return closest_on_feature(e, f, fb, p, z, pair);
 }
 
 double i2m_edt_closest_world(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2])
@@ -348,6 +447,147 @@ double i2m_edt_closest_world(const i2m_edt_t *e, const double p[3], double max_d
     memcpy(z, p, 3 * sizeof *z);
   }
   return d2;
+}
+
+int i2m_edt_label_at(const i2m_edt_t *e, const double g[3])
+{
+  double u[3];
+  int64_t c[3];
+  const int64_t *n = e->img->n;
+  for (int a = 0; a < 3; a++)
+    if (!(g[a] * e->inv_spacing[a] + 0.5 >= 0.0)) return 0; /* also NaN */
+  bool inside = edt_locate(e, g, u, c);
+  int64_t v[3] = {(int64_t)u[0], (int64_t)u[1], (int64_t)u[2]};
+  if (v[0] >= n[0] || v[1] >= n[1] || v[2] >= n[2]) return 0; /* outside the image */
+  if (!e->labels_packed) return i2m_image_label_voxel(e->img, v[0], v[1], v[2]);
+  if (!inside) return 0; /* outside K: background */
+  return (int)((uint32_t)e->ft[((c[2] - e->lo[2]) * e->m[1] + (c[1] - e->lo[1])) * e->m[0] + (c[0] - e->lo[0])] >>
+               e->label_shift);
+}
+
+static inline void affine3(const double A[3][4], const double x[3], double y[3])
+{
+  for (int k = 0; k < 3; k++) y[k] = A[k][0] * x[0] + A[k][1] * x[1] + A[k][2] * x[2] + A[k][3];
+}
+
+int i2m_edt_label_at_world(const i2m_edt_t *e, const double w[3])
+{
+  if (!e->labels_packed || e->nboundary == 0) {
+    double g[3];
+    i2m_image_world_to_grid(e->img, w, g);
+    return i2m_edt_label_at(e, g);
+  }
+  double u[3];
+  affine3(e->w2k, w, u);
+  for (int k = 0; k < 3; k++)
+    if (!(u[k] >= 0.0 && u[k] < (double)e->m[k])) return 0; /* outside K (or NaN): background */
+  const int64_t c[3] = {(int64_t)u[0], (int64_t)u[1], (int64_t)u[2]};
+  return (int)((uint32_t)e->ft[(c[2] * e->m[1] + c[1]) * e->m[0] + c[0]] >> e->label_shift);
+}
+
+/* The probe when labels are packed (nearly always), in voxel coordinates relative to K: one
+ * affine map in, the label and the feature from one word, the neighbours' labels from the
+ * words next to the feature's, one affine map out. */
+static void probe_packed(const i2m_edt_t *e, const double p[3], double max_d2, bool closest, i2m_edt_probe_t *out)
+{
+  const double *s = e->img->spacing;
+  const int64_t *m = e->m;
+  double u[3];
+  affine3(e->w2k, p, u);
+  int64_t c[3];
+  bool inside = true;
+  double out2 = 0; /* squared distance to K (mm) */
+  for (int k = 0; k < 3; k++) {
+    if (!(u[k] >= 0.0)) { /* (NaN too) */
+      c[k] = 0;
+      inside = false;
+      out2 += i2m_sq(u[k] * s[k]);
+    } else if (u[k] >= (double)m[k]) {
+      c[k] = m[k] - 1;
+      inside = false;
+      out2 += i2m_sq((u[k] - (double)m[k]) * s[k]);
+    } else {
+      c[k] = (int64_t)u[k];
+    }
+  }
+  const uint32_t word = (uint32_t)e->ft[(c[2] * m[1] + c[1]) * m[0] + c[0]];
+  out->label = inside ? (int)(word >> e->label_shift) : 0; /* outside K: background */
+  const uint32_t f = word & e->feat_mask;
+  uint32_t fb[3];
+  box_coords(e, f, fb);
+  if (!inside) {
+    out->near = !(out2 > max_d2);
+  } else {
+    double dc2 = 0;
+    for (int k = 0; k < 3; k++) dc2 += i2m_sq((double)(c[k] - (int64_t)fb[k]) * s[k]);
+    const double reach = e->diagonal + sqrt(max_d2);
+    out->near = !(dc2 > reach * reach);
+  }
+  if (!closest || !out->near) return;
+  /* the closest point on the faces between the feature voxel and its differently labelled
+   * neighbours: p clamped into the voxel, then onto each such face */
+  const int64_t stride[3] = {1, m[0], m[0] * m[1]};
+  const int lb = (int)((uint32_t)e->ft[f] >> e->label_shift);
+  double q0[3], best = INFINITY, zk[3] = {0, 0, 0};
+  for (int k = 0; k < 3; k++) {
+    double lo = (double)fb[k], hi = lo + 1.0;
+    q0[k] = u[k] < lo ? lo : u[k] > hi ? hi : u[k];
+  }
+  for (int ax = 0; ax < 3; ax++)
+    for (int dir = -1; dir <= 1; dir += 2) {
+      const int64_t nb = (int64_t)fb[ax] + dir;
+      const int ln = nb < 0 || nb >= m[ax] ? 0 : (int)((uint32_t)e->ft[(int64_t)f + dir * stride[ax]] >> e->label_shift);
+      if (ln == lb) continue;
+      double q[3] = {q0[0], q0[1], q0[2]};
+      q[ax] = (double)fb[ax] + (dir > 0 ? 1.0 : 0.0);
+      const double d2 = i2m_sq((u[0] - q[0]) * s[0]) + i2m_sq((u[1] - q[1]) * s[1]) + i2m_sq((u[2] - q[2]) * s[2]);
+      if (d2 < best) {
+        best = d2;
+        memcpy(zk, q, sizeof q);
+        out->pair[0] = lb < ln ? lb : ln;
+        out->pair[1] = lb < ln ? ln : lb;
+      }
+    }
+  if (!(best < INFINITY)) return; /* (a feature voxel always has a differing neighbour) */
+  affine3(e->k2w, zk, out->z);
+  out->d2 = i2m_dist2(p, out->z);
+}
+
+void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, bool closest, i2m_edt_probe_t *out)
+{
+  if (e->labels_packed && e->nboundary > 0) {
+    out->d2 = INFINITY;
+    out->pair[0] = out->pair[1] = 0;
+    probe_packed(e, p, max_d2, closest, out);
+    return;
+  }
+  double g[3], u[3];
+  int64_t c[3];
+  i2m_image_world_to_grid(e->img, p, g);
+  out->d2 = INFINITY;
+  out->near = false;
+  out->pair[0] = out->pair[1] = 0;
+  if (e->m[0] <= 0 || e->nboundary == 0) { /* no interface: one label everywhere in K */
+    out->label = i2m_edt_label_at(e, g);
+    return;
+  }
+  bool inside = edt_locate(e, g, u, c);
+  const int64_t *n = e->img->n;
+  bool in_image = u[0] >= 0.0 && u[1] >= 0.0 && u[2] >= 0.0 && u[0] < (double)n[0] && u[1] < (double)n[1] &&
+                  u[2] < (double)n[2];
+  const int64_t idx = ((c[2] - e->lo[2]) * e->m[1] + (c[1] - e->lo[1])) * e->m[0] + (c[0] - e->lo[0]);
+  if (!in_image) out->label = 0;
+  else if (!e->labels_packed) out->label = i2m_image_label_voxel(e->img, (int64_t)u[0], (int64_t)u[1], (int64_t)u[2]);
+  else out->label = inside ? (int)((uint32_t)e->ft[idx] >> e->label_shift) : 0;
+  const uint32_t f = i2m_edt_feature(e, idx);
+  uint32_t fb[3];
+  box_coords(e, f, fb);
+  out->near = maybe_within(e, g, c, inside, fb, max_d2);
+  if (!closest || !out->near) return;
+  double zg[3];
+  closest_on_feature(e, f, fb, g, zg, out->pair);
+  i2m_image_grid_to_world(e->img, zg, out->z);
+  out->d2 = i2m_dist2(p, out->z);
 }
 
 void i2m_edt_bisect(const i2m_edt_t *e, const double a[3], const double b[3], double tol, double x[3],

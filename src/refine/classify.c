@@ -8,14 +8,24 @@
 
 #include <string.h>
 
-void tet_geom(const i2m_refine_t *r, uint32_t t, bool cached_label, tet_geom_t *g)
+void tet_geom(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g)
 {
   const i2m_dt_t *dt = r->dt;
   const uint32_t *v = dt->tv + 4 * (size_t)t;
   bool flat = i2m_tet_circumcenter(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]),
                                    i2m_dt_xyz(dt, v[3]), g->cc, &g->r2) != 0;
-  if (cached_label) g->label = tinfo(dt, t)->label;
-  else g->label = flat ? 0 : i2m_edt_label_at_world(r->edt, g->cc);
+  g->probe.d2 = INFINITY;
+  g->probe.near = false;
+  if (flat || !isfinite(g->r2)) {
+    g->label = kind == PROBE_NEAR ? 0 : tinfo(dt, t)->label;
+  } else if (kind == PROBE_NEAR) {
+    i2m_edt_probe_world(r->edt, g->cc, g->r2, false, &g->probe);
+    g->label = g->probe.label;
+  } else {
+    /* within 2 delta too: R7 keeps track of the free vertices that close to an interface */
+    if (kind == PROBE_CLOSEST) i2m_edt_probe_world(r->edt, g->cc, fmax(g->r2, r->four_delta2), true, &g->probe);
+    g->label = tinfo(dt, t)->label;
+  }
 }
 
 /* Size and ratio bounds at a point (world) with label index lab. */
@@ -91,14 +101,12 @@ static int facet_bad(const i2m_refine_t *r, uint32_t t, uint32_t i)
 
 /* Ball of t meets an interface: the closest interface point z to its centre, the patch it
  * lies on, and the squared distance. */
-static bool ball_meets_interface(const i2m_refine_t *r, const tet_geom_t *ti, double z[3], uint32_t *patch,
-                                 double *d2)
+static bool ball_meets_interface(const tet_geom_t *ti, double z[3], uint32_t *patch, double *d2)
 {
-  *d2 = INFINITY;
-  if (!isfinite(ti->r2)) return false;
-  int pair[2];
-  *d2 = i2m_edt_closest_world(r->edt, ti->cc, (ti->r2 > r->four_delta2 ? ti->r2 : r->four_delta2), z, pair);
-  *patch = patch_key(pair[0], pair[1]);
+  *d2 = ti->probe.d2;
+  if (!isfinite(*d2)) return false;
+  memcpy(z, ti->probe.z, 3 * sizeof *z);
+  *patch = patch_key(ti->probe.pair[0], ti->probe.pair[1]);
   return *d2 <= ti->r2;
 }
 
@@ -125,13 +133,9 @@ static bool surface_vertex_near(const i2m_refine_t *r, uint32_t t, const double 
 int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *ti)
 {
   const i2m_refine_t *r = w->r;
-  double z[3], d2;
-  uint32_t patch;
-  bool meets = ball_meets_interface(r, ti, z, &patch, &d2);
-  if (meets && !surface_vertex_near(r, t, z, patch)) return LEVEL_SURFACE;
+  if (ti->probe.near) return LEVEL_SURFACE; /* R1 or R2 may apply: decided when popped */
   for (uint32_t i = 0; i < 4; i++)
     if (facet_bad(r, t, i)) return LEVEL_SURFACE;
-  if (meets && ti->r2 >= r->four_delta2 && in_box(r->dt, ti->cc)) return LEVEL_R2;
   if (ti->label != 0 && in_box(r->dt, ti->cc) && volume_bad(r, t, ti)) return LEVEL_VOLUME;
   return -1;
 }
@@ -143,8 +147,8 @@ static bool facet_action(const i2m_refine_t *r, uint32_t t, uint32_t i, action_t
   const i2m_dt_t *dt = r->dt;
   uint32_t u = dt->tn[4 * t + i] >> 2;
   tet_geom_t gt, gu;
-  tet_geom(r, t, true, &gt);
-  tet_geom(r, u, true, &gu);
+  tet_geom(r, t, PROBE_CENTRE, &gt);
+  tet_geom(r, u, PROBE_CENTRE, &gu);
   if (!isfinite(gt.r2) || !isfinite(gu.r2)) return false;
   int la, lb;
   i2m_edt_bisect(r->edt, gt.cc, gu.cc, r->bisect_tol, a->p, &la, &lb);
@@ -170,12 +174,12 @@ int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t sk
   const i2m_dt_t *dt = r->dt;
   tet_geom_t g;
   const tet_geom_t *ti = &g;
-  tet_geom(r, t, true, &g);
+  tet_geom(r, t, PROBE_CLOSEST, &g);
   memset(a, 0, sizeof *a);
   a->seed = t;
   double z[3], d2;
   uint32_t patch;
-  bool meets = ball_meets_interface(r, ti, z, &patch, &d2);
+  bool meets = ball_meets_interface(ti, z, &patch, &d2);
   a->dist2 = d2;
   if (meets && !(skip & (1u << 1)) && !surface_vertex_near(r, t, z, patch)) { /* R1 */
     memcpy(a->p, z, sizeof z);

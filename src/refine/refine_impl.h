@@ -18,11 +18,14 @@ typedef struct {
 
 static inline tet_info_t *tinfo(const i2m_dt_t *dt, uint32_t t) { return (tet_info_t *)i2m_dt_payload(dt, t); }
 
-/** A tet's circumcentre (world), squared circumradius (INFINITY when flat) and label. */
+/** A tet's circumcentre (world), squared circumradius (INFINITY when flat), label, and the
+ *  interface point closest to the centre (probe.d2 is +inf when it lies farther than
+ *  max(r, 2 delta), or the tet is flat). */
 typedef struct {
   double cc[3];
   double r2;
   int label;
+  i2m_edt_probe_t probe;
 } tet_geom_t;
 
 /** A bad element: a tet, its meta when recorded (stale once the tet changes) and its
@@ -120,10 +123,21 @@ struct i2m_refine {
 };
 
 /* classify.c */
-/** Circumcentre and radius of tet t; the label is looked up (at creation) or read from the
- *  payload (cached). */
-void tet_geom(const i2m_refine_t *r, uint32_t t, bool cached_label, tet_geom_t *g);
+/** How much tet_geom asks of the image. */
+typedef enum {
+  PROBE_CENTRE,  /**< the centre and radius only; the label from the payload */
+  PROBE_NEAR,    /**< at creation: the label at the centre, and whether the ball may meet an interface */
+  PROBE_CLOSEST  /**< the closest interface point within max(r, 2 delta); the label from the payload */
+} probe_kind_t;
+
+/** Circumcentre, radius, label and (as asked) what the image says about tet t's centre. */
+void tet_geom(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g);
+/** The list a tet created just now (PROBE_NEAR) belongs to, or -1.  The surface rules and R2
+ *  need the closest interface point, which is left to when the tet is popped: a tet whose
+ *  ball may meet an interface goes to the surface list, and most die before their turn. */
 int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *g);
+/** The list an action's rule belongs to. */
+static inline int rule_level(int rule) { return rule == 2 ? LEVEL_R2 : rule == 3 || rule == 4 ? LEVEL_VOLUME : LEVEL_SURFACE; }
 /** The action for tet t (its vertices locked), skipping the rules whose bit (1 << rule) is
  *  set in skip (their point could not go in); 0 when nothing is to be done. */
 int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t skip);

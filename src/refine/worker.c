@@ -49,7 +49,8 @@ static i2m_err_t push_classified(i2m_refine_worker_t *w, uint32_t t, const tet_g
 i2m_err_t worker_push(i2m_refine_worker_t *w, uint32_t t)
 {
   tet_geom_t g;
-  tet_geom(w->r, t, true, &g);
+  tet_geom(w->r, t, PROBE_NEAR, &g);
+  g.label = tinfo(w->r->dt, t)->label; /* (the same lookup; the cached value is the tet's) */
   return push_classified(w, t, &g);
 }
 
@@ -62,7 +63,7 @@ i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, u
     w->cap_geom = cap;
   }
   for (uint32_t k = 0; k < n; k++) {
-    tet_geom(w->r, newt[k], false, &w->geom[k]);
+    tet_geom(w->r, newt[k], PROBE_NEAR, &w->geom[k]);
     tinfo(w->r->dt, newt[k])->label = (uint16_t)w->geom[k].label;
   }
   for (uint32_t k = 0; k < n; k++) I2M_CALL(push_classified(w, newt[k], &w->geom[k]));
@@ -206,6 +207,11 @@ int worker_step(i2m_refine_worker_t *w)
     if (!classify_action(w, b.t, &a, skip)) {
       i2m_dt_unlock_all(&w->ctx);
       return I2M_STEP_DONE;
+    }
+    if (skip == 0 && rule_level(a.rule) > level) { /* its list comes later: wait there */
+      i2m_err_t err = worker_push_entry(w, rule_level(a.rule), &b);
+      i2m_dt_unlock_all(&w->ctx);
+      return err == I2M_OK ? I2M_STEP_DONE : I2M_STEP_ERROR;
     }
     i2m_dt_status_t st = insert_action(w, &a, &v);
     if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) {

@@ -256,7 +256,7 @@ i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
     return I2M_ERROR(I2M_ERR_UNSUPPORTED, "%s: the labelled region spans %lld voxels; at most 2^31 are supported",
                      img->path, (long long)nbox);
   }
-  i2m_err_t err = i2m_malloc((size_t)nbox, sizeof(int32_t), &e->ft);
+  i2m_err_t err = i2m_realloc_large((size_t)nbox, sizeof(int32_t), &e->ft); /* (e->ft is NULL: a malloc) */
   if (err != I2M_OK) {
     i2m_free(&e);
     return err;

@@ -17,9 +17,9 @@ void tet_geom(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *
   g->probe.d2 = INFINITY;
   g->probe.near = false;
   if (flat || !isfinite(g->r2)) {
-    g->label = kind == PROBE_NEAR ? 0 : tinfo(dt, t)->label;
-  } else if (kind == PROBE_NEAR) {
-    i2m_edt_probe_world(r->edt, g->cc, g->r2, false, &g->probe);
+    g->label = kind == PROBE_NEW ? 0 : tinfo(dt, t)->label;
+  } else if (kind == PROBE_NEW) {
+    i2m_edt_probe_world(r->edt, g->cc, fmax(g->r2, r->four_delta2), true, &g->probe);
     g->label = g->probe.label;
   } else {
     /* within 2 delta too: R7 keeps track of the free vertices that close to an interface */
@@ -117,23 +117,34 @@ static bool in_box(const i2m_dt_t *dt, const double p[3])
   return true;
 }
 
-/* R1's spacing test: is a surface vertex of the same patch within delta of z?  The tet's own
- * vertices are looked at first (near a sampled surface one of them usually is), then the
- * grid. */
-static bool surface_vertex_near(const i2m_refine_t *r, uint32_t t, const double z[3], uint32_t patch)
+/* R1's spacing test on the tet's own vertices: is one a surface vertex of the same patch
+ * within delta of z?  (Near a sampled surface one of them usually is.) */
+static bool own_vertex_near(const i2m_refine_t *r, uint32_t t, const double z[3], uint32_t patch)
 {
   const i2m_dt_t *dt = r->dt;
   const uint32_t *v = dt->tv + 4 * (size_t)t;
   for (int i = 0; i < 4; i++)
     if (dt->vkind[v[i]] == I2M_VK_SURFACE && r->surf.tag[v[i]] == patch && i2m_dist2(i2m_dt_xyz(dt, v[i]), z) < r->delta2)
       return true;
-  return vgrid_has_within(&r->surf, dt, z, r->delta, patch);
+  return false;
+}
+
+/* R1's spacing test: is a surface vertex of the same patch within delta of z?  The tet's own
+ * vertices first, then the grid. */
+static bool surface_vertex_near(const i2m_refine_t *r, uint32_t t, const double z[3], uint32_t patch)
+{
+  return own_vertex_near(r, t, z, patch) || vgrid_has_within(&r->surf, r->dt, z, r->delta, patch);
 }
 
 int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *ti)
 {
   const i2m_refine_t *r = w->r;
-  if (ti->probe.near) return LEVEL_SURFACE; /* R1 or R2 may apply: decided when popped */
+  double z[3], d2;
+  uint32_t patch;
+  if (ball_meets_interface(ti, z, &patch, &d2)) {
+    if (!own_vertex_near(r, t, z, patch)) return LEVEL_SURFACE; /* R1 unless the grid finds a vertex: when popped */
+    if (ti->r2 >= r->four_delta2 && in_box(r->dt, ti->cc)) return LEVEL_R2;
+  }
   for (uint32_t i = 0; i < 4; i++)
     if (facet_bad(r, t, i)) return LEVEL_SURFACE;
   if (ti->label != 0 && in_box(r->dt, ti->cc) && volume_bad(r, t, ti)) return LEVEL_VOLUME;

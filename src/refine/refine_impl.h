@@ -126,15 +126,15 @@ struct i2m_refine {
 /** How much tet_geom asks of the image. */
 typedef enum {
   PROBE_CENTRE,  /**< the centre and radius only; the label from the payload */
-  PROBE_NEAR,    /**< at creation: the label at the centre, and whether the ball may meet an interface */
+  PROBE_NEW,     /**< at creation: the label at the centre, and the closest interface point */
   PROBE_CLOSEST  /**< the closest interface point within max(r, 2 delta); the label from the payload */
 } probe_kind_t;
 
 /** Circumcentre, radius, label and (as asked) what the image says about tet t's centre. */
 void tet_geom(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g);
-/** The list a tet created just now (PROBE_NEAR) belongs to, or -1.  The surface rules and R2
- *  need the closest interface point, which is left to when the tet is popped: a tet whose
- *  ball may meet an interface goes to the surface list, and most die before their turn. */
+/** The list a tet (PROBE_NEW or PROBE_CLOSEST) belongs to, or -1.  R1's spacing test looks
+ *  at the tet's own vertices only: when none is near, the grid is searched when the tet is
+ *  popped (most tets die before their turn). */
 int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *g);
 /** The list an action's rule belongs to. */
 static inline int rule_level(int rule) { return rule == 2 ? LEVEL_R2 : rule == 3 || rule == 4 ? LEVEL_VOLUME : LEVEL_SURFACE; }

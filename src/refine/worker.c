@@ -49,8 +49,7 @@ static i2m_err_t push_classified(i2m_refine_worker_t *w, uint32_t t, const tet_g
 i2m_err_t worker_push(i2m_refine_worker_t *w, uint32_t t)
 {
   tet_geom_t g;
-  tet_geom(w->r, t, PROBE_NEAR, &g);
-  g.label = tinfo(w->r->dt, t)->label; /* (the same lookup; the cached value is the tet's) */
+  tet_geom(w->r, t, PROBE_CLOSEST, &g);
   return push_classified(w, t, &g);
 }
 
@@ -63,7 +62,7 @@ i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, u
     w->cap_geom = cap;
   }
   for (uint32_t k = 0; k < n; k++) {
-    tet_geom(w->r, newt[k], PROBE_NEAR, &w->geom[k]);
+    tet_geom(w->r, newt[k], PROBE_NEW, &w->geom[k]);
     tinfo(w->r->dt, newt[k])->label = (uint16_t)w->geom[k].label;
   }
   for (uint32_t k = 0; k < n; k++) I2M_CALL(push_classified(w, newt[k], &w->geom[k]));
@@ -191,6 +190,8 @@ int worker_step(i2m_refine_worker_t *w)
   while (level < NLEVELS && w->q[level].n == 0) level++;
   if (level == NLEVELS) return I2M_STEP_IDLE;
   bad_t b = badlist_pop(&w->q[level], dt);
+  /* a generation moved on proves the tet gone (most popped entries are): no locks needed */
+  if (i2m_dt_meta(dt, b.t) != b.meta) return I2M_STEP_DONE;
   if (!i2m_dt_lock_tet(&w->ctx, b.v)) {
     badlist_requeue_bottom(&w->q[level], &b);
     return retry_later(w, I2M_DT_ROLLBACK);

@@ -105,7 +105,7 @@ typedef struct i2m_dt_ctx {
   double *rows;                                   /* [cap_held][4] translated by p, lifted */
   double rmax[3], isp_bound;                      /* largest |row| per axis, its insphere bound */
   uint32_t *cavl;                                 /* [cap_cav][4] local vertex indices of cav[] */
-  uint16_t *etab2;                                /* [64][64] directed edges of local numbers */
+  uint16_t *etab2;                                /* [128][128] directed edges of local numbers */
   struct i2m_dt_edge *etab; uint32_t ecap, stamp; /* edge table (adjacency of new tets) */
   uint32_t *pool; uint32_t npool, cap_pool;       /* this context's dead tet slots */
   uint32_t fresh_next, fresh_end;                 /* reserved range of fresh slots */

@@ -10,10 +10,39 @@
 extern "C" {
 #endif
 
+/** The circumcentre of a nearly flat tet, in double-double arithmetic (plain doubles lose
+ *  every digit); see i2m_tet_circumcenter, which calls it. */
+int i2m_tet_circumcenter_flat(const double a[3], const double b[3], const double c[3], const double d[3],
+                              double cc[3], double *r2);
+
 /** Circumcentre c and squared circumradius of tet abcd.  Returns 0 on success, -1 when the
- *  tet is (numerically) flat, in which case c is set far away and *r2 to +inf. */
-int i2m_tet_circumcenter(const double a[3], const double b[3], const double c[3], const double d[3],
-                         double cc[3], double *r2);
+ *  tet is flat, in which case c is set far away and *r2 to +inf.  Inline: the refinement
+ *  computes it for every tet it creates.
+ *  c - a = (|u|^2 (v x w) + |v|^2 (w x u) + |w|^2 (u x v)) / (2 u.(v x w)), u = b - a, ... */
+static inline int i2m_tet_circumcenter(const double a[3], const double b[3], const double c[3], const double d[3],
+                                       double cc[3], double *r2)
+{
+  const double ux = b[0] - a[0], uy = b[1] - a[1], uz = b[2] - a[2];
+  const double vx = c[0] - a[0], vy = c[1] - a[1], vz = c[2] - a[2];
+  const double wx = d[0] - a[0], wy = d[1] - a[1], wz = d[2] - a[2];
+  const double vw0 = vy * wz - vz * wy, vw1 = vz * wx - vx * wz, vw2 = vx * wy - vy * wx;
+  const double wu0 = wy * uz - wz * uy, wu1 = wz * ux - wx * uz, wu2 = wx * uy - wy * ux;
+  const double uv0 = uy * vz - uz * vy, uv1 = uz * vx - ux * vz, uv2 = ux * vy - uy * vx;
+  const double den = 2.0 * (ux * vw0 + uy * vw1 + uz * vw2);
+  const double lu = ux * ux + uy * uy + uz * uz, lv = vx * vx + vy * vy + vz * vz, lw = wx * wx + wy * wy + wz * wz;
+  const double scale = lu + lv + lw;
+  /* |den| > 1e-11 scale^1.5, squared; otherwise double precision is not enough */
+  if (!(den * den > 1e-22 * scale * scale * scale)) return i2m_tet_circumcenter_flat(a, b, c, d, cc, r2);
+  const double inv = 1.0 / den;
+  const double x0 = (lu * vw0 + lv * wu0 + lw * uv0) * inv;
+  const double x1 = (lu * vw1 + lv * wu1 + lw * uv1) * inv;
+  const double x2 = (lu * vw2 + lv * wu2 + lw * uv2) * inv;
+  cc[0] = a[0] + x0;
+  cc[1] = a[1] + x1;
+  cc[2] = a[2] + x2;
+  *r2 = x0 * x0 + x1 * x1 + x2 * x2;
+  return 0;
+}
 
 /** Six times the signed volume of tet abcd (positive for a positive tet), in doubles. */
 double i2m_tet_signed_volume6(const double a[3], const double b[3], const double c[3], const double d[3]);

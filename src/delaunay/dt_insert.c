@@ -203,7 +203,7 @@ static const uint8_t EDGE_DIR[4][4][2] = {{{0, 0}, {3, 2}, {1, 3}, {2, 1}},
                                           {{2, 3}, {0, 0}, {3, 0}, {0, 2}},
                                           {{3, 1}, {0, 3}, {0, 0}, {1, 0}},
                                           {{1, 2}, {2, 0}, {0, 1}, {0, 0}}};
-#define EDGE_TABLE_SIDE 64u
+#define EDGE_TABLE_SIDE 128u
 
 static bool edge_table_ready(i2m_dt_ctx_t *ctx, uint32_t nb)
 {

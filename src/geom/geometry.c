@@ -90,33 +90,13 @@ static int circumcenter_dd(const double a[3], const double b[3], const double c[
   return isfinite(*r2) ? 0 : -1;
 }
 
-int i2m_tet_circumcenter(const double a[3], const double b[3], const double c[3], const double d[3],
-                         double cc[3], double *r2)
+int i2m_tet_circumcenter_flat(const double a[3], const double b[3], const double c[3], const double d[3],
+                              double cc[3], double *r2)
 {
-  /* c - a = (|u|^2 (v x w) + |v|^2 (w x u) + |w|^2 (u x v)) / (2 u.(v x w)) */
-  double u[3], v[3], w[3], vw[3], wu[3], uv[3];
-  sub3(b, a, u);
-  sub3(c, a, v);
-  sub3(d, a, w);
-  cross3(v, w, vw);
-  cross3(w, u, wu);
-  cross3(u, v, uv);
-  double den = 2.0 * dot3(u, vw);
-  double lu = dot3(u, u), lv = dot3(v, v), lw = dot3(w, w);
-  double scale = lu + lv + lw;
-  if (!(fabs(den) > 1e-11 * scale * sqrt(scale))) { /* nearly flat: double precision is not enough */
-    if (circumcenter_dd(a, b, c, d, cc, r2) == 0) return 0;
-    cc[0] = cc[1] = cc[2] = 1e300;
-    *r2 = INFINITY;
-    return -1;
-  }
-  double x[3];
-  for (int k = 0; k < 3; k++) x[k] = (lu * vw[k] + lv * wu[k] + lw * uv[k]) / den;
-  cc[0] = a[0] + x[0];
-  cc[1] = a[1] + x[1];
-  cc[2] = a[2] + x[2];
-  *r2 = dot3(x, x);
-  return 0;
+  if (circumcenter_dd(a, b, c, d, cc, r2) == 0) return 0;
+  cc[0] = cc[1] = cc[2] = 1e300;
+  *r2 = INFINITY;
+  return -1;
 }
 
 double i2m_tet_signed_volume6(const double a[3], const double b[3], const double c[3], const double d[3])

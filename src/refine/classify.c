@@ -19,11 +19,11 @@ void tet_geom(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *
   if (flat || !isfinite(g->r2)) {
     g->label = kind == PROBE_NEW ? 0 : tinfo(dt, t)->label;
   } else if (kind == PROBE_NEW) {
-    i2m_edt_probe_world(r->edt, g->cc, fmax(g->r2, r->four_delta2), true, &g->probe);
+    i2m_edt_probe_world(r->edt, g->cc, (g->r2 > r->four_delta2 ? g->r2 : r->four_delta2), true, &g->probe);
     g->label = g->probe.label;
   } else {
     /* within 2 delta too: R7 keeps track of the free vertices that close to an interface */
-    if (kind == PROBE_CLOSEST) i2m_edt_probe_world(r->edt, g->cc, fmax(g->r2, r->four_delta2), true, &g->probe);
+    if (kind == PROBE_CLOSEST) i2m_edt_probe_world(r->edt, g->cc, (g->r2 > r->four_delta2 ? g->r2 : r->four_delta2), true, &g->probe);
     g->label = tinfo(dt, t)->label;
   }
 }

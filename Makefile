@@ -170,10 +170,14 @@ check-scripts: all
 check-layers:
 	$(Q)sh tools/check_layers.sh
 
-# every image of ../shared/data at 1, 2 and 4 threads (about ten minutes on 2 cores)
+# every image of ../shared/data at 1, 2 and 4 threads, in both modes (about twenty minutes on 2 cores)
+ALL_IMAGES := liver.inr.gz spine_verse009.nii.gz brain_kmeans_noisy.nii.gz vertebrae_vbseg.mha \
+  knee_atlas.nrrd abdominal_atlas.nrrd head_colin27.nii.gz
 check-full: all
-	$(Q)I2M_IMAGES="liver.inr.gz spine_verse009.nii.gz brain_kmeans_noisy.nii.gz vertebrae_vbseg.mha \
-	  knee_atlas.nrrd abdominal_atlas.nrrd head_colin27.nii.gz" sh tests/scripts/test_threads_real_images.sh
+	$(Q)I2M_IMAGES="$(ALL_IMAGES)" I2M_DATA="$${I2M_DATA:-../shared/data}" I2M_BIN=bin PYTHON=$(PYTHON) \
+	  I2M_TMP=$$(mktemp -d) sh tests/scripts/test_threads_real_images.sh
+	$(Q)I2M_IMAGES="$(ALL_IMAGES)" I2M_DATA="$${I2M_DATA:-../shared/data}" I2M_BIN=bin PYTHON=$(PYTHON) \
+	  I2M_TMP=$$(mktemp -d) sh tests/scripts/test_deterministic.sh
 
 check-tsan:
 	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=thread all $(BUILD_TSAN_TESTS)

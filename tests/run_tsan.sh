@@ -23,5 +23,12 @@ if build/tsan/bin/i2m "$DATA/spine_verse009.nii.gz" -o "$out/spine.vtu" --delta 
 else
   echo "  FAIL  [tsan] i2m on spine_verse009, 4 threads"; tail -n 40 "$out/log"; fail=1
 fi
+start=$(date +%s)
+if build/tsan/bin/i2m "$DATA/spine_verse009.nii.gz" -o "$out/spine_d.vtu" --delta 2 --threads 4 --deterministic --quiet >"$out/log" 2>&1 &&
+   bin/i2m-check "$out/spine_d.vtu" --max-ratio 2 --min-facet-angle 30 >/dev/null; then
+  echo "  PASS  [tsan] i2m on spine_verse009, 4 threads, deterministic mode ($(( $(date +%s) - start )) s)"
+else
+  echo "  FAIL  [tsan] i2m on spine_verse009, 4 threads, deterministic mode"; tail -n 40 "$out/log"; fail=1
+fi
 rm -rf "$out"
 exit $fail

@@ -91,12 +91,27 @@ typedef struct {
 #define I2M_DT_OWNER_MASK ((1u << I2M_DT_OWNER_BITS) - 1)
 #define I2M_DT_MAX_OWNERS I2M_DT_OWNER_MASK
 
+/** Slots a context may hand out without touching shared state: dead slots it collected, and
+ *  a range of never-used slots reserved for it.  Owned by the context while it is attached
+ *  (a tile of the deterministic mode keeps its own between phases). */
+typedef struct {
+  uint32_t *pool; uint32_t npool, cap_pool;       /* dead tet slots */
+  uint32_t fresh_next, fresh_end;                 /* reserved range of fresh tet slots */
+  uint32_t *vpool; uint32_t nvpool, cap_vpool;    /* dead vertex slots */
+  uint32_t vfresh_next, vfresh_end;               /* reserved range of fresh vertex slots */
+} i2m_dt_slots_t;
+
 /** Per-thread context: scratch space, locks held, free-slot pool, statistics. */
 typedef struct i2m_dt_ctx {
   i2m_dt_t *dt;            /**< borrowed */
   uint32_t owner;          /**< lock owner tag (>= 1) */
   bool locking;            /**< take vertex locks (threaded runs) */
-  uint32_t conflict_owner; /**< after a rollback: the owner of the lock that failed */
+  uint32_t conflict_owner; /**< after a rollback: the owner of the lock that failed (0: none, or the zone) */
+  const double *zone;      /**< borrowed, or NULL: the box [zone[0..2], zone[3..5]] (world) that every
+                                vertex an operation touches must lie in, else it rolls back (the
+                                deterministic mode: threads work in zones that never meet) */
+  bool bounded;            /**< slots only from ctx->slots: when they run out, I2M_DT_FULL (the
+                                deterministic mode: a tile's operations never touch shared capacity) */
   /* scratch (owned, grown as needed: private to the context) */
   uint32_t *cav; uint32_t ncav, cap_cav;          /* cavity / star tets */
   i2m_dt_bface_t *bnd; uint32_t nbnd, cap_bnd;    /* cavity boundary faces */
@@ -107,11 +122,7 @@ typedef struct i2m_dt_ctx {
   uint32_t *cavl;                                 /* [cap_cav][4] local vertex indices of cav[] */
   uint16_t *etab2;                                /* [128][128] directed edges of local numbers */
   struct i2m_dt_edge *etab; uint32_t ecap, stamp; /* edge table (adjacency of new tets) */
-  uint32_t *pool; uint32_t npool, cap_pool;       /* this context's dead tet slots */
-  uint32_t fresh_next, fresh_end;                 /* reserved range of fresh slots */
-  uint32_t *vpool; uint32_t nvpool, cap_vpool;    /* dead vertex slots */
-  uint32_t vfresh_next, vfresh_end;               /* reserved range of fresh vertex slots */
-  uint64_t rng;            /**< xorshift state for the walk */
+  i2m_dt_slots_t slots;    /**< the slots this context may hand out */
   struct i2m_dt_removal *rm; /**< owned: scratch for vertex removal, created on first use */
   /* statistics */
   int64_t n_insert, n_remove, n_rollback, n_created, n_killed, n_walk_steps;
@@ -152,6 +163,15 @@ i2m_dt_status_t i2m_dt_insert_walk(i2m_dt_ctx_t *ctx, const double p[3], i2m_gid
  *  symbolic perturbation, so the result is the Delaunay tetrahedralization without v.
  *  On I2M_DT_OK ctx->newt lists the new tets and the locks are held (as for insert). */
 i2m_dt_status_t i2m_dt_remove(i2m_dt_ctx_t *ctx, uint32_t v);
+
+/** Reserves slots for a context's (or a tile's) slot set: dead slots from the shared free
+ *  lists first, then a fresh range, so that @p s holds at least ntets and nverts.  Grows the
+ *  arrays when needed.  Not while any context works on the triangulation. */
+i2m_err_t i2m_dt_slots_grant(i2m_dt_t *dt, i2m_dt_slots_t *s, uint32_t ntets, uint32_t nverts);
+/** Returns a slot set's slots to the shared free lists (it keeps its pools' memory). */
+void i2m_dt_slots_return(i2m_dt_t *dt, i2m_dt_slots_t *s);
+/** The same, and frees its pools. */
+void i2m_dt_slots_release(i2m_dt_t *dt, i2m_dt_slots_t *s);
 
 /** Releases every vertex lock held by the context. */
 void i2m_dt_unlock_all(i2m_dt_ctx_t *ctx);

@@ -72,6 +72,7 @@ typedef struct {
   int64_t duplicates;     /**< points that coincided with a vertex */
   int64_t junction_skips; /**< R5 skipped near junctions of three or more labels */
   int64_t tets_created;
+  int64_t deferred;       /**< deterministic mode: elements left to the sequential pass */
   double seconds;
 } i2m_refine_stats_t;
 
@@ -133,6 +134,38 @@ i2m_err_t i2m_refine_reclassify(i2m_refine_t *r, int k, int n);
 void i2m_refine_worker_stats(const i2m_refine_t *r, int k, i2m_refine_stats_t *s);
 /** Returns the workers' pooled slots to the triangulation (after a parallel phase). */
 void i2m_refine_sync(i2m_refine_t *r);
+
+/* ---- for the threads layer: the deterministic mode (the same mesh on any number of
+ * threads; see src/refine/tiles.c).  Every call not marked thread safe runs alone. ---- */
+
+/** From now on every tet centred in the labelled block whose radius exceeds half the fine
+ *  tiles' margin is split, whatever its label (as the paper's coarse mesh bounds all sizes):
+ *  cavities then fit the zones, and few elements wait for a sequential pass. */
+void i2m_refine_tiling_bound(i2m_refine_t *r);
+/** Cuts the labelled block into tiles for the current scale and moves every queued element
+ *  into its tile (workers stop taking vertex locks). */
+i2m_err_t i2m_refine_tiling_begin(i2m_refine_t *r);
+/** Frees the tiles (their unused slots go back to the triangulation).  Accepts none. */
+void i2m_refine_tiling_end(i2m_refine_t *r);
+/** After a change of bounds: every tet classified again into the tiles, in three steps:
+ *  prepare; worker k of n classifies its share of the slots (thread safe across k); collect. */
+i2m_err_t i2m_refine_tiling_prepare_classify(i2m_refine_t *r);
+i2m_err_t i2m_refine_tiling_classify(i2m_refine_t *r, int k, int n);
+i2m_err_t i2m_refine_tiling_collect(i2m_refine_t *r);
+/** Is there anything left to do? */
+bool i2m_refine_tiling_has_work(const i2m_refine_t *r);
+/** The tiles of colour @p color (0..7) with work, busiest first, each with slots granted;
+ *  *tiles is borrowed until the next call. */
+i2m_err_t i2m_refine_tiling_phase(i2m_refine_t *r, int color, const uint32_t **tiles, uint32_t *ntiles);
+/** Worker k refines tile id until its lists are empty or its slots run out (thread safe
+ *  across different k and tiles of one phase). */
+i2m_err_t i2m_refine_tile_run(i2m_refine_t *r, int k, uint32_t id);
+/** The barrier after a phase: hand-overs reach their tiles, in an order of their own. */
+i2m_err_t i2m_refine_tiling_merge(i2m_refine_t *r);
+/** The end of a round: worker 0 does, in order, what no tile could (no zone). */
+i2m_err_t i2m_refine_tiling_sequential(i2m_refine_t *r);
+/** Tile side (mm), rounds and sequential operations so far (0 without a tiling). */
+void i2m_refine_tiling_figures(const i2m_refine_t *r, double *side, int64_t *rounds, int64_t *sequential_ops);
 
 /** After refinement: frees the spatial grids and the workers' scratch (extraction, stats and
  *  parameters stay usable).  The image oracle is not used any more. */

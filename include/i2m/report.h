@@ -23,6 +23,8 @@ typedef struct {
   i2m_refine_stats_t stats;
   int64_t nv, nt, ntri;              /**< output mesh */
   int64_t working_tets;              /**< tets of the triangulation at the end (all labels) */
+  uint64_t checksum;                 /**< order-independent checksum of that triangulation
+                                          (i2m_dt_checksum): equal for equal meshes */
   double phase_seconds[I2M_NPHASES];
   double total_seconds;
   size_t peak_rss;                   /**< bytes */

@@ -15,6 +15,7 @@ typedef struct {
   int threads;          /**< worker threads (0: the cores the process may use) */
   double coarse_factor; /**< the coarse phase uses size bounds x this factor (1: no coarse phase) */
   bool pin;             /**< bind thread k to the k-th core the process may use */
+  bool deterministic;   /**< tiles instead of speculation: the same mesh on any number of threads */
 } i2m_threads_opts_t;
 
 /** What one thread did. */
@@ -30,6 +31,10 @@ typedef struct {
   char binding[160];             /**< how threads were placed */
   double coarse_seconds, fine_seconds;
   int64_t pauses;                /**< capacity growths with every thread paused */
+  int deterministic;             /**< 1: the deterministic mode ran (tiles) */
+  double tile_side;              /**< its tile side (mm) in the fine phase */
+  int64_t phases, rounds;        /**< its parallel phases and rounds */
+  int64_t sequential_ops;        /**< elements its sequential passes did */
   i2m_thread_figures_t *thread;  /**< owned: [threads]; free with i2m_threads_report_free */
 } i2m_threads_report_t;
 

@@ -51,16 +51,16 @@ static i2m_err_t run_mesher(run_t *r)
 
   phase_begin(r, "refinement");
   I2M_CALL(i2m_refine_create(r->img, r->edt, &o->params, &r->ref));
-  i2m_threads_opts_t to = {o->threads, o->coarse_factor, !o->no_pin};
+  i2m_threads_opts_t to = {o->threads, o->coarse_factor, !o->no_pin, o->deterministic != 0};
   I2M_CALL(i2m_threads_refine(r->ref, &to, &r->team));
   if (o->check) I2M_CALL(i2m_dt_check(i2m_refine_dt(r->ref), true));
-  r->rep.working_tets = i2m_dt_count_tets(i2m_refine_dt(r->ref));
   i2m_refine_release_scratch(r->ref); /* the oracles' memory, before extraction adds the mesh */
   i2m_edt_destroy(&r->edt);
   i2m_image_release_voxels(r->img);
   phase_end(r, I2M_PHASE_REFINE);
 
   phase_begin(r, "extraction");
+  r->rep.checksum = i2m_dt_checksum(i2m_refine_dt(r->ref), &r->rep.working_tets);
   I2M_CALL(i2m_refine_extract(r->ref, &r->mesh));
   i2m_refine_release_mesh(r->ref);
   phase_end(r, I2M_PHASE_EXTRACT);

@@ -26,6 +26,8 @@ void cli_usage(FILE *f)
           "                        the process may use)\n"
           "  --coarse-factor F     a coarse mesh first, at F x delta and F x the size bounds (default 4)\n"
           "  --no-pin              do not bind the threads to cores\n"
+          "  --deterministic       the same mesh whatever the number of threads (tiles refined in\n"
+          "                        turn instead of speculation with vertex locks)\n"
           "  --report FILE.json    write the run report as JSON\n"
           "  --seed N              random seed (default 1)\n"
           "  --check               check the triangulation's validity before writing (slow)\n"
@@ -147,6 +149,7 @@ i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o)
     else if (!strcmp(a, "--verbose") || !strcmp(a, "-v")) o->verbose = 1;
     else if (!strcmp(a, "--check")) o->check = 1;
     else if (!strcmp(a, "--no-pin")) o->no_pin = 1;
+    else if (!strcmp(a, "--deterministic")) o->deterministic = 1;
     else if (a[0] == '-' && a[1] != '\0') {
       I2M_CHECK(i + 1 < argc, I2M_ERR_ARG, "option %s needs a value (see i2m --help)", a);
       I2M_CALL(parse_valued(a, argv[i + 1], o, &nls, &nrg));

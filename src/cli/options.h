@@ -11,7 +11,7 @@ typedef struct {
   i2m_refine_params_t params;
   i2m_label_size_t label_sizes[I2M_MAX_LIST];
   i2m_region_t regions[I2M_MAX_LIST];
-  int quiet, verbose, check, threads, no_pin;
+  int quiet, verbose, check, threads, no_pin, deterministic;
   double coarse_factor;
   int help, version;
 } cli_options_t;

@@ -165,7 +165,6 @@ i2m_err_t i2m_dt_ctx_init(i2m_dt_ctx_t *ctx, i2m_dt_t *dt, uint32_t owner, bool 
   ctx->owner = owner ? owner : 1;
   I2M_CHECK(ctx->owner <= I2M_DT_MAX_OWNERS, I2M_ERR_ARG, "at most %u threads per process", I2M_DT_MAX_OWNERS);
   ctx->locking = locking;
-  ctx->rng = 0x9E3779B97F4A7C15ull ^ ((uint64_t)owner * 0xD1B54A32D192ED03ull);
   I2M_CALL(ctx_edges_begin(ctx, 64));
   return I2M_OK;
 }
@@ -181,8 +180,8 @@ void i2m_dt_ctx_free(i2m_dt_ctx_t *ctx)
   i2m_free(&ctx->cavl);
   i2m_free(&ctx->etab2);
   i2m_free(&ctx->etab);
-  i2m_free(&ctx->pool);
-  i2m_free(&ctx->vpool);
+  i2m_free(&ctx->slots.pool);
+  i2m_free(&ctx->slots.vpool);
   removal_free(&ctx->rm);
   memset(ctx, 0, sizeof *ctx);
 }
@@ -194,25 +193,31 @@ static i2m_err_t push_u32(uint32_t **a, uint32_t *n, uint32_t *cap, uint32_t x)
   return I2M_OK;
 }
 
-void i2m_dt_ctx_flush(i2m_dt_ctx_t *ctx)
+/* Appends k values (src[0..k), or first, first + 1, ... when src is NULL) to a u32 array. */
+static i2m_err_t append_u32(uint32_t **a, uint32_t *n, uint32_t *cap, const uint32_t *src, uint32_t first, uint32_t k)
 {
-  i2m_dt_t *dt = ctx->dt;
-  for (uint32_t k = 0; k < ctx->npool; k++)
-    if (push_u32(&dt->free_t, &dt->nfree_t, &dt->cap_free_t, ctx->pool[k]) != I2M_OK) break;
-  ctx->npool = 0;
-  for (uint32_t k = 0; k < ctx->nvpool; k++)
-    if (push_u32(&dt->free_v, &dt->nfree_v, &dt->cap_free_v, ctx->vpool[k]) != I2M_OK) break;
-  ctx->nvpool = 0;
-  /* fresh slots reserved but unused become dead slots in the shared lists */
-  for (uint32_t t = ctx->fresh_next; t < ctx->fresh_end; t++)
-    if (push_u32(&dt->free_t, &dt->nfree_t, &dt->cap_free_t, t) != I2M_OK) break;
-  ctx->fresh_next = ctx->fresh_end = 0;
-  for (uint32_t v = ctx->vfresh_next; v < ctx->vfresh_end; v++) {
-    dt->vkind[v] = I2M_VK_DEAD;
-    if (push_u32(&dt->free_v, &dt->nfree_v, &dt->cap_free_v, v) != I2M_OK) break;
-  }
-  ctx->vfresh_next = ctx->vfresh_end = 0;
+  if (k == 0) return I2M_OK;
+  I2M_CALL(ctx_grow_u32(a, cap, *n + k));
+  if (src) memcpy(*a + *n, src, k * sizeof **a);
+  else
+    for (uint32_t i = 0; i < k; i++) (*a)[*n + i] = first + i;
+  *n += k;
+  return I2M_OK;
 }
+
+/* A slot set's slots into the shared free lists (unused fresh slots become dead slots). */
+static void slots_flush(i2m_dt_t *dt, i2m_dt_slots_t *s)
+{
+  if (append_u32(&dt->free_t, &dt->nfree_t, &dt->cap_free_t, s->pool, 0, s->npool) == I2M_OK) s->npool = 0;
+  if (append_u32(&dt->free_v, &dt->nfree_v, &dt->cap_free_v, s->vpool, 0, s->nvpool) == I2M_OK) s->nvpool = 0;
+  if (append_u32(&dt->free_t, &dt->nfree_t, &dt->cap_free_t, NULL, s->fresh_next, s->fresh_end - s->fresh_next) == I2M_OK)
+    s->fresh_next = s->fresh_end = 0;
+  if (append_u32(&dt->free_v, &dt->nfree_v, &dt->cap_free_v, NULL, s->vfresh_next, s->vfresh_end - s->vfresh_next) ==
+      I2M_OK)
+    s->vfresh_next = s->vfresh_end = 0; /* (their kind is already I2M_VK_DEAD: never used) */
+}
+
+void i2m_dt_ctx_flush(i2m_dt_ctx_t *ctx) { slots_flush(ctx->dt, &ctx->slots); }
 
 i2m_err_t ctx_cavity_room(i2m_dt_ctx_t *ctx, uint32_t need)
 {
@@ -238,11 +243,11 @@ i2m_err_t ctx_hold_room(i2m_dt_ctx_t *ctx)
 
 bool i2m_dt_lock_tet(i2m_dt_ctx_t *ctx, const uint32_t v4[4])
 {
-  return !ctx->locking || vlock_take_tet(ctx, v4);
+  return ctx_claim_tet(ctx, v4);
 }
 
-i2m_err_t ctx_pool_push(i2m_dt_ctx_t *ctx, uint32_t t) { return push_u32(&ctx->pool, &ctx->npool, &ctx->cap_pool, t); }
-i2m_err_t ctx_vpool_push(i2m_dt_ctx_t *ctx, uint32_t v) { return push_u32(&ctx->vpool, &ctx->nvpool, &ctx->cap_vpool, v); }
+i2m_err_t ctx_pool_push(i2m_dt_ctx_t *ctx, uint32_t t) { return push_u32(&ctx->slots.pool, &ctx->slots.npool, &ctx->slots.cap_pool, t); }
+i2m_err_t ctx_vpool_push(i2m_dt_ctx_t *ctx, uint32_t v) { return push_u32(&ctx->slots.vpool, &ctx->slots.nvpool, &ctx->slots.cap_vpool, v); }
 
 /* ---- slot allocation ---- */
 
@@ -258,8 +263,8 @@ static bool take_fresh_tets(i2m_dt_ctx_t *ctx)
     uint32_t take = dt->cap_t - cur < FRESH_CHUNK ? dt->cap_t - cur : FRESH_CHUNK;
     if (atomic_compare_exchange_weak_explicit(&dt->nt_atomic, &cur, cur + take, memory_order_relaxed,
                                               memory_order_relaxed)) {
-      ctx->fresh_next = cur;
-      ctx->fresh_end = cur + take;
+      ctx->slots.fresh_next = cur;
+      ctx->slots.fresh_end = cur + take;
       return true;
     }
   }
@@ -270,17 +275,17 @@ static bool take_fresh_tets(i2m_dt_ctx_t *ctx)
 static bool take_fresh_vertices(i2m_dt_ctx_t *ctx)
 {
   i2m_dt_t *dt = ctx->dt;
-  for (uint32_t v = ctx->vfresh_next; v < ctx->vfresh_end; v++)
+  for (uint32_t v = ctx->slots.vfresh_next; v < ctx->slots.vfresh_end; v++)
     if (ctx_vpool_push(ctx, v) != I2M_OK) return false;
-  ctx->vfresh_next = ctx->vfresh_end = 0;
+  ctx->slots.vfresh_next = ctx->slots.vfresh_end = 0;
   uint32_t cur = atomic_load_explicit(&dt->nv_atomic, memory_order_relaxed);
   for (;;) {
     if (cur >= dt->cap_v) return false;
     uint32_t take = dt->cap_v - cur < FRESH_CHUNK ? dt->cap_v - cur : FRESH_CHUNK;
     if (atomic_compare_exchange_weak_explicit(&dt->nv_atomic, &cur, cur + take, memory_order_relaxed,
                                               memory_order_relaxed)) {
-      ctx->vfresh_next = cur;
-      ctx->vfresh_end = cur + take;
+      ctx->slots.vfresh_next = cur;
+      ctx->slots.vfresh_end = cur + take;
       return true;
     }
   }
@@ -289,26 +294,29 @@ static bool take_fresh_vertices(i2m_dt_ctx_t *ctx)
 bool ctx_ensure_slots(i2m_dt_ctx_t *ctx, uint32_t ntets, uint32_t nverts)
 {
   i2m_dt_t *dt = ctx->dt;
+  const i2m_dt_slots_t *s = &ctx->slots;
+  if (ctx->bounded) /* its own slots or nothing */
+    return s->npool + (s->fresh_end - s->fresh_next) >= ntets && s->nvpool + (s->vfresh_end - s->vfresh_next) >= nverts;
   if (!ctx->locking) { /* sequential: shared lists are ours; grow when short */
-    uint32_t have_t = ctx->npool + dt->nfree_t + (ctx->fresh_end - ctx->fresh_next) + (dt->cap_t - i2m_dt_ntets_slots(dt));
-    uint32_t have_v = ctx->nvpool + dt->nfree_v + (dt->cap_v - i2m_dt_nverts_slots(dt));
+    uint32_t have_t = ctx->slots.npool + dt->nfree_t + (ctx->slots.fresh_end - ctx->slots.fresh_next) + (dt->cap_t - i2m_dt_ntets_slots(dt));
+    uint32_t have_v = ctx->slots.nvpool + dt->nfree_v + (dt->cap_v - i2m_dt_nverts_slots(dt));
     if (have_t >= ntets && have_v >= nverts) return true;
     uint64_t ct = have_t >= ntets ? dt->cap_t : (uint64_t)dt->cap_t + dt->cap_t / 2 + ntets + 1024;
     uint64_t cv = have_v >= nverts ? dt->cap_v : (uint64_t)dt->cap_v + dt->cap_v / 2 + nverts + 1024;
     if (ct > (UINT32_MAX >> 2) - 1) ct = (UINT32_MAX >> 2) - 1;
     if (cv > UINT32_MAX - 2) cv = UINT32_MAX - 2;
     if (i2m_dt_reserve(dt, (uint32_t)cv, (uint32_t)ct) != I2M_OK) return false;
-    have_t = ctx->npool + dt->nfree_t + (ctx->fresh_end - ctx->fresh_next) + (dt->cap_t - i2m_dt_ntets_slots(dt));
+    have_t = ctx->slots.npool + dt->nfree_t + (ctx->slots.fresh_end - ctx->slots.fresh_next) + (dt->cap_t - i2m_dt_ntets_slots(dt));
     return have_t >= ntets;
   }
-  while (ctx->npool + (ctx->fresh_end - ctx->fresh_next) < ntets) {
-    if (ctx->fresh_next < ctx->fresh_end) { /* keep the remaining fresh slots in the pool */
-      for (; ctx->fresh_next < ctx->fresh_end; ctx->fresh_next++)
-        if (ctx_pool_push(ctx, ctx->fresh_next) != I2M_OK) return false;
+  while (ctx->slots.npool + (ctx->slots.fresh_end - ctx->slots.fresh_next) < ntets) {
+    if (ctx->slots.fresh_next < ctx->slots.fresh_end) { /* keep the remaining fresh slots in the pool */
+      for (; ctx->slots.fresh_next < ctx->slots.fresh_end; ctx->slots.fresh_next++)
+        if (ctx_pool_push(ctx, ctx->slots.fresh_next) != I2M_OK) return false;
     }
     if (!take_fresh_tets(ctx)) return false;
   }
-  while (ctx->nvpool + (ctx->vfresh_end - ctx->vfresh_next) < nverts)
+  while (ctx->slots.nvpool + (ctx->slots.vfresh_end - ctx->slots.vfresh_next) < nverts)
     if (!take_fresh_vertices(ctx)) return false;
   return true;
 }
@@ -316,19 +324,19 @@ bool ctx_ensure_slots(i2m_dt_ctx_t *ctx, uint32_t ntets, uint32_t nverts)
 uint32_t ctx_tet_slot(i2m_dt_ctx_t *ctx)
 {
   i2m_dt_t *dt = ctx->dt;
-  if (ctx->npool) return ctx->pool[--ctx->npool];
-  if (ctx->fresh_next < ctx->fresh_end) return ctx->fresh_next++;
+  if (ctx->slots.npool) return ctx->slots.pool[--ctx->slots.npool];
+  if (ctx->slots.fresh_next < ctx->slots.fresh_end) return ctx->slots.fresh_next++;
   if (!ctx->locking && dt->nfree_t) return dt->free_t[--dt->nfree_t];
   bool ok = take_fresh_tets(ctx);
   I2M_CHECK_ABORT(ok, "tet slot requested beyond the reserved capacity");
-  return ctx->fresh_next++;
+  return ctx->slots.fresh_next++;
 }
 
 uint32_t ctx_vertex_slot(i2m_dt_ctx_t *ctx)
 {
   i2m_dt_t *dt = ctx->dt;
-  if (ctx->nvpool) return ctx->vpool[--ctx->nvpool];
-  if (ctx->vfresh_next < ctx->vfresh_end) return ctx->vfresh_next++;
+  if (ctx->slots.nvpool) return ctx->slots.vpool[--ctx->slots.nvpool];
+  if (ctx->slots.vfresh_next < ctx->slots.vfresh_end) return ctx->slots.vfresh_next++;
   if (!ctx->locking && dt->nfree_v) return dt->free_v[--dt->nfree_v];
   uint32_t v = atomic_fetch_add_explicit(&dt->nv_atomic, 1, memory_order_relaxed);
   I2M_CHECK_ABORT(v < dt->cap_v, "vertex slot requested beyond the reserved capacity");
@@ -338,20 +346,20 @@ uint32_t ctx_vertex_slot(i2m_dt_ctx_t *ctx)
 uint32_t ctx_vertex_slot_locked(i2m_dt_ctx_t *ctx, uint32_t word)
 {
   i2m_dt_t *dt = ctx->dt;
-  for (uint32_t tries = ctx->nvpool; tries > 0; tries--) { /* recycled slots first */
-    uint32_t v = ctx->vpool[ctx->nvpool - 1];
+  for (uint32_t tries = ctx->slots.nvpool; tries > 0; tries--) { /* recycled slots first */
+    uint32_t v = ctx->slots.vpool[ctx->slots.nvpool - 1];
     uint32_t expected = 0;
     if (atomic_compare_exchange_strong_explicit(&dt->vlock[v], &expected, word, memory_order_acquire,
                                                 memory_order_relaxed)) {
-      ctx->nvpool--;
+      ctx->slots.nvpool--;
       return v;
     }
-    ctx->vpool[ctx->nvpool - 1] = ctx->vpool[0]; /* busy: to the bottom, try the next */
-    ctx->vpool[0] = v;
+    ctx->slots.vpool[ctx->slots.nvpool - 1] = ctx->slots.vpool[0]; /* busy: to the bottom, try the next */
+    ctx->slots.vpool[0] = v;
   }
   for (;;) { /* never-used slots: nobody refers to them */
-    if (ctx->vfresh_next == ctx->vfresh_end && !take_fresh_vertices(ctx)) return I2M_DT_NONE;
-    uint32_t v = ctx->vfresh_next++, expected = 0;
+    if (ctx->slots.vfresh_next == ctx->slots.vfresh_end && !take_fresh_vertices(ctx)) return I2M_DT_NONE;
+    uint32_t v = ctx->slots.vfresh_next++, expected = 0;
     if (atomic_compare_exchange_strong_explicit(&dt->vlock[v], &expected, word, memory_order_acquire,
                                                 memory_order_relaxed))
       return v;
@@ -375,4 +383,48 @@ i2m_err_t ctx_edges_begin(i2m_dt_ctx_t *ctx, uint32_t nfaces)
     ctx->stamp = 1;
   }
   return I2M_OK;
+}
+
+/* ---- slot sets granted to tiles (deterministic mode) ---- */
+
+i2m_err_t i2m_dt_slots_grant(i2m_dt_t *dt, i2m_dt_slots_t *s, uint32_t ntets, uint32_t nverts)
+{
+  /* what is left of the fresh ranges joins the pools: a new range must be contiguous */
+  I2M_CALL(append_u32(&s->pool, &s->npool, &s->cap_pool, NULL, s->fresh_next, s->fresh_end - s->fresh_next));
+  I2M_CALL(append_u32(&s->vpool, &s->nvpool, &s->cap_vpool, NULL, s->vfresh_next, s->vfresh_end - s->vfresh_next));
+  s->fresh_next = s->fresh_end = s->vfresh_next = s->vfresh_end = 0;
+  /* dead slots from the top of the shared lists */
+  uint32_t kt = s->npool < ntets ? ntets - s->npool : 0, kv = s->nvpool < nverts ? nverts - s->nvpool : 0;
+  kt = kt < dt->nfree_t ? kt : dt->nfree_t;
+  kv = kv < dt->nfree_v ? kv : dt->nfree_v;
+  I2M_CALL(append_u32(&s->pool, &s->npool, &s->cap_pool, dt->free_t + dt->nfree_t - kt, 0, kt));
+  I2M_CALL(append_u32(&s->vpool, &s->nvpool, &s->cap_vpool, dt->free_v + dt->nfree_v - kv, 0, kv));
+  dt->nfree_t -= kt;
+  dt->nfree_v -= kv;
+  uint32_t nt = s->npool < ntets ? ntets - s->npool : 0, nv = s->nvpool < nverts ? nverts - s->nvpool : 0;
+  uint32_t t0 = i2m_dt_ntets_slots(dt), v0 = i2m_dt_nverts_slots(dt);
+  if ((uint64_t)t0 + nt > dt->cap_t || (uint64_t)v0 + nv > dt->cap_v) {
+    uint64_t ct = (uint64_t)t0 + nt > dt->cap_t ? (uint64_t)t0 + nt + dt->cap_t / 2 : dt->cap_t;
+    uint64_t cv = (uint64_t)v0 + nv > dt->cap_v ? (uint64_t)v0 + nv + dt->cap_v / 2 : dt->cap_v;
+    I2M_CHECK(ct <= (UINT32_MAX >> 2) - 1 && cv <= UINT32_MAX - 2, I2M_ERR_MEMORY,
+              "a process can hold at most 2^30 tetrahedra; use more MPI ranks");
+    I2M_CALL(i2m_dt_reserve(dt, (uint32_t)cv, (uint32_t)ct));
+  }
+  s->fresh_next = t0;
+  s->fresh_end = t0 + nt;
+  s->vfresh_next = v0;
+  s->vfresh_end = v0 + nv;
+  atomic_store_explicit(&dt->nt_atomic, t0 + nt, memory_order_relaxed);
+  atomic_store_explicit(&dt->nv_atomic, v0 + nv, memory_order_relaxed);
+  return I2M_OK;
+}
+
+void i2m_dt_slots_return(i2m_dt_t *dt, i2m_dt_slots_t *s) { slots_flush(dt, s); }
+
+void i2m_dt_slots_release(i2m_dt_t *dt, i2m_dt_slots_t *s)
+{
+  i2m_dt_slots_return(dt, s);
+  i2m_free(&s->pool);
+  i2m_free(&s->vpool);
+  memset(s, 0, sizeof *s);
 }

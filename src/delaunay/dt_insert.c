@@ -32,9 +32,8 @@ static i2m_dt_status_t cavity_abandon(i2m_dt_ctx_t *ctx, i2m_dt_status_t why)
 
 /* The row of local vertex k (vertex v) for point p, and the cavity's error bound grown to
  * cover it. */
-static I2M_INLINE void row_make(i2m_dt_ctx_t *ctx, uint32_t k, uint32_t v, const double *p)
+static I2M_INLINE void row_fill(i2m_dt_ctx_t *ctx, double *row, uint32_t v, const double *p)
 {
-  double *row = ctx->rows + 4 * (size_t)k;
   i2m_insphere_row(i2m_dt_xyz(ctx->dt, v), p, row);
   const double ax = fabs(row[0]), ay = fabs(row[1]), az = fabs(row[2]);
   if (I2M_UNLIKELY((ax > ctx->rmax[0]) | (ay > ctx->rmax[1]) | (az > ctx->rmax[2]))) {
@@ -43,6 +42,11 @@ static I2M_INLINE void row_make(i2m_dt_ctx_t *ctx, uint32_t k, uint32_t v, const
     ctx->rmax[2] = az > ctx->rmax[2] ? az : ctx->rmax[2];
     ctx->isp_bound = i2m_insphere_rows_bound(ctx->rmax[0], ctx->rmax[1], ctx->rmax[2]);
   }
+}
+
+static I2M_INLINE void row_make(i2m_dt_ctx_t *ctx, uint32_t k, uint32_t v, const double *p)
+{
+  row_fill(ctx, ctx->rows + 4 * (size_t)k, v, p);
 }
 
 /* Gives vertex v a local number for this insertion: takes its lock word (a compare-and-swap
@@ -71,6 +75,11 @@ static I2M_INLINE int64_t local_vertex(i2m_dt_ctx_t *ctx, uint32_t v, const doub
   ctx->nheld = k + 1;
   row_make(ctx, k, v, p);
   return k;
+}
+
+static inline uint32_t local_owner(const i2m_dt_ctx_t *ctx, uint32_t v)
+{
+  return atomic_load_explicit(&ctx->dt->vlock[v], memory_order_relaxed) & I2M_DT_OWNER_MASK;
 }
 
 static inline uint32_t local_of(const i2m_dt_t *dt, uint32_t v)
@@ -117,6 +126,27 @@ static I2M_INLINE int conflict_across(const i2m_dt_ctx_t *ctx, const uint32_t cl
   return conflict_exact(ctx, fl, p, gid);
 }
 
+/* conflict_across for an apex w that has no local number (zone mode: a vertex outside the
+ * zone, which may be read but not numbered), from its row computed on the spot. */
+static I2M_NOINLINE int conflict_across_unnumbered(i2m_dt_ctx_t *ctx, const uint32_t cl[4], uint32_t i, uint32_t w,
+                                                   const double *p, i2m_gidx_t gid)
+{
+  double row[4];
+  row_fill(ctx, row, w, p);
+  const double *R = ctx->rows;
+  const double *r[4] = {R + 4 * cl[0], R + 4 * cl[1], R + 4 * cl[2], R + 4 * cl[3]};
+  r[i] = row;
+  const double det = i2m_insphere_det_rows(r[0], r[1], r[2], r[3]);
+  if (fabs(det) > ctx->isp_bound) return (det > 0.0) - (det < 0.0);
+  int s = i2m_insphere_filter_rows(r[0], r[1], r[2], r[3]);
+  if (s != 0) return s;
+  const i2m_dt_t *dt = ctx->dt;
+  uint32_t v[4] = {ctx->held[cl[0]], ctx->held[cl[1]], ctx->held[cl[2]], ctx->held[cl[3]]};
+  v[i] = w;
+  return i2m_insphere_sos_exact(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), p,
+                                i2m_dt_gid(dt, v[0]), i2m_dt_gid(dt, v[1]), i2m_dt_gid(dt, v[2]), i2m_dt_gid(dt, v[3]), gid);
+}
+
 static inline bool row_is_origin(const i2m_dt_ctx_t *ctx, uint32_t l)
 {
   const double *r = ctx->rows + 4 * (size_t)l;
@@ -161,6 +191,12 @@ static I2M_INLINE i2m_dt_status_t cavity_visit(i2m_dt_ctx_t *ctx, uint32_t k, ui
   const uint32_t m = i2m_dt_meta(dt, u);
   if (m & I2M_TM_MARK) return I2M_DT_OK; /* inside the cavity: not a boundary face */
   const uint32_t *uv = dt->tv + 4 * (size_t)u;
+  if (ctx->zone && I2M_UNLIKELY(!zone_holds(ctx, uv[j])) && (local_owner(ctx, uv[j]) != ctx->owner)) {
+    /* zone mode: a vertex outside the zone may be read, not numbered; u may stay outside */
+    if (conflict_across_unnumbered(ctx, cl, i, uv[j], p, gid) >= 0) return boundary_push(ctx, k << 2 | i, n);
+    ctx->conflict_owner = 0;
+    return I2M_DT_ROLLBACK;
+  }
   const int64_t lw = local_vertex(ctx, uv[j], p);
   if (I2M_UNLIKELY(lw < 0)) return lw == -1 ? I2M_DT_ROLLBACK : I2M_DT_FULL;
   if (conflict_across(ctx, cl, i, (uint32_t)lw, p, gid) >= 0) return boundary_push(ctx, k << 2 | i, n);
@@ -282,7 +318,7 @@ static I2M_NOINLINE void fill_hashed(i2m_dt_ctx_t *ctx, uint32_t v)
 static bool fill_room(i2m_dt_ctx_t *ctx, uint32_t nb, uint32_t nc)
 {
   return ctx_ensure_slots(ctx, nb > nc ? nb - nc : 0, 1) && ctx_grow_u32(&ctx->newt, &ctx->cap_new, nb) == I2M_OK &&
-         (nc <= nb || ctx_grow_u32(&ctx->pool, &ctx->cap_pool, ctx->npool + (nc - nb)) == I2M_OK) &&
+         (nc <= nb || ctx_grow_u32(&ctx->slots.pool, &ctx->slots.cap_pool, ctx->slots.npool + (nc - nb)) == I2M_OK) &&
          (!ctx->locking || ctx_hold_room(ctx) == I2M_OK);
 }
 
@@ -346,7 +382,7 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   for (uint32_t k = nb; k < nc; k++) { /* cavity slots left over: dead */
     uint32_t t = ctx->cav[k];
     meta_store(dt, t, meta_killed(i2m_dt_meta(dt, t)));
-    ctx->pool[ctx->npool++] = t;
+    ctx->slots.pool[ctx->slots.npool++] = t;
   }
   ctx->n_insert++;
   ctx->n_created += nb;
@@ -365,6 +401,10 @@ static i2m_dt_status_t cavity_seed(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   const uint32_t *sv = dt->tv + 4 * (size_t)seed;
   uint32_t v4[4], l4[4];
   memcpy(v4, sv, sizeof v4);
+  if (ctx->zone && !(zone_holds(ctx, v4[0]) && zone_holds(ctx, v4[1]) && zone_holds(ctx, v4[2]) && zone_holds(ctx, v4[3]))) {
+    ctx->conflict_owner = 0;
+    return I2M_DT_ROLLBACK;
+  }
   for (int i = 0; i < 4; i++) {
     int64_t l = local_vertex(ctx, v4[i], p);
     if (l < 0) return l == -1 ? I2M_DT_ROLLBACK : I2M_DT_FULL;
@@ -385,6 +425,10 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
 {
   I2M_CHECK_ABORT(ctx->locking || ctx->nheld == 0, "i2m_dt_insert: the previous operation's vertices are still held");
   ctx->ncav = ctx->nbnd = ctx->nnew = 0;
+  if (ctx->zone && !zone_holds_point(ctx->zone, p)) {
+    ctx->conflict_owner = 0;
+    return cavity_abandon(ctx, I2M_DT_ROLLBACK);
+  }
   ctx->rmax[0] = ctx->rmax[1] = ctx->rmax[2] = 0.0;
   ctx->isp_bound = (double)INFINITY;
   for (uint32_t k = 0; k < ctx->nheld; k++) row_make(ctx, k, ctx->held[k], p); /* locked before */
@@ -399,14 +443,28 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
 
 /* ---- point location ---- */
 
-static inline uint32_t rng_next(i2m_dt_ctx_t *ctx)
+static inline uint32_t rng_next(uint64_t *state)
 {
-  uint64_t x = ctx->rng;
+  uint64_t x = *state;
   x ^= x << 13;
   x ^= x >> 7;
   x ^= x << 17;
-  ctx->rng = x;
+  *state = x;
   return (uint32_t)(x >> 32);
+}
+
+/* The walk's random face order is seeded by the point itself: the walk is a function of the
+ * mesh, the point and the start (the same on any thread, whatever it did before). */
+static uint64_t walk_seed(const double p[3])
+{
+  uint64_t h = 0x9E3779B97F4A7C15ull;
+  for (int a = 0; a < 3; a++) {
+    uint64_t bits;
+    memcpy(&bits, &p[a], sizeof bits);
+    h = (h ^ bits) * 0xBF58476D1CE4E5B9ull;
+    h ^= h >> 31;
+  }
+  return h | 1; /* (xorshift needs a non-zero state) */
 }
 
 /* orient3d of tet v with each vertex i in turn replaced by p (o[i] < 0: p is beyond face i),
@@ -451,11 +509,12 @@ uint32_t i2m_dt_locate(i2m_dt_ctx_t *ctx, const double p[3], uint32_t start)
 {
   const i2m_dt_t *dt = ctx->dt;
   uint32_t t = start, prev = I2M_DT_NONE;
+  uint64_t rng = walk_seed(p);
   for (;;) {
     const uint32_t *v = dt->tv + 4 * (size_t)t;
     double o[4], bound;
     face_orients(dt, v, p, o, &bound);
-    uint32_t r = rng_next(ctx), next = I2M_DT_NONE;
+    uint32_t r = rng_next(&rng), next = I2M_DT_NONE;
     for (uint32_t k = 0; k < 4; k++) {
       uint32_t i = (r + k) & 3;
       uint32_t n = dt->tn[4 * t + i];

@@ -78,8 +78,8 @@ static void local_reset(struct i2m_dt_removal *rm)
   atomic_store_explicit(&loc->nt_atomic, rm->nbox_tets, memory_order_relaxed);
   atomic_store_explicit(&loc->nv_atomic, 8, memory_order_relaxed);
   loc->nfree_t = loc->nfree_v = 0;
-  rm->lctx.npool = rm->lctx.nvpool = 0;
-  rm->lctx.fresh_next = rm->lctx.fresh_end = 0;
+  rm->lctx.slots.npool = rm->lctx.slots.nvpool = 0;
+  rm->lctx.slots.fresh_next = rm->lctx.slots.fresh_end = 0;
 }
 
 /* ---- main vertex -> local vertex (open addressing with stamps) ---- */
@@ -155,16 +155,16 @@ static i2m_dt_status_t star_collect(i2m_dt_ctx_t *ctx, uint32_t v)
 {
   i2m_dt_t *dt = ctx->dt;
   ctx->ncav = 0;
-  if (ctx->locking && !vlock_take(ctx, v)) return I2M_DT_ROLLBACK;
+  if (!ctx_claim(ctx, v)) return I2M_DT_ROLLBACK;
   uint32_t t0 = dt->vtet[v]; /* stable: it contains v, which we hold */
-  if (ctx->locking && !vlock_take_tet(ctx, dt->tv + 4 * (size_t)t0)) return I2M_DT_ROLLBACK;
+  if (!ctx_claim_tet(ctx, dt->tv + 4 * (size_t)t0)) return I2M_DT_ROLLBACK;
   if (ctx_cavity_room(ctx, 1) != I2M_OK) return I2M_DT_FULL;
   ctx->cav[ctx->ncav++] = t0;
   meta_store(dt, t0, i2m_dt_meta(dt, t0) | I2M_TM_MARK);
   for (uint32_t k = 0; k < ctx->ncav; k++) {
     uint32_t t = ctx->cav[k];
     const uint32_t *tv = dt->tv + 4 * (size_t)t;
-    if (ctx->locking && !vlock_take_tet(ctx, tv)) return I2M_DT_ROLLBACK;
+    if (!ctx_claim_tet(ctx, tv)) return I2M_DT_ROLLBACK;
     if (i2m_dt_meta(dt, t) & I2M_TM_FROZEN) return I2M_DT_FROZEN;
     for (uint32_t i = 0; i < 4; i++) {
       if (tv[i] == v) continue; /* the face opposite v is a link face */
@@ -289,7 +289,7 @@ static i2m_dt_status_t fill_commit(i2m_dt_ctx_t *ctx, struct i2m_dt_removal *rm,
   uint32_t nf = rm->nfill, ns = ctx->ncav;
   if (!ctx_ensure_slots(ctx, nf > ns ? nf - ns : 0, 0)) return I2M_DT_FULL;
   if (ctx_grow_u32(&ctx->newt, &ctx->cap_new, nf) != I2M_OK) return I2M_DT_FULL;
-  if (ctx_grow_u32(&ctx->pool, &ctx->cap_pool, ctx->npool + ns + 1) != I2M_OK) return I2M_DT_FULL;
+  if (ctx_grow_u32(&ctx->slots.pool, &ctx->slots.cap_pool, ctx->slots.npool + ns + 1) != I2M_OK) return I2M_DT_FULL;
   if (ctx_vpool_push(ctx, v) != I2M_OK) return I2M_DT_FULL;
   ctx->nnew = 0;
   for (uint32_t k = 0; k < nf; k++) {
@@ -301,7 +301,7 @@ static i2m_dt_status_t fill_commit(i2m_dt_ctx_t *ctx, struct i2m_dt_removal *rm,
   for (uint32_t k = nf; k < ns; k++) {
     uint32_t t = ctx->cav[k];
     meta_store(dt, t, meta_killed(i2m_dt_meta(dt, t)));
-    ctx->pool[ctx->npool++] = t;
+    ctx->slots.pool[ctx->slots.npool++] = t;
   }
   for (uint32_t k = 0; k < nf; k++) {
     uint32_t lt = rm->fill[k], t = rm->slot[lt];

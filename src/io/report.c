@@ -134,8 +134,8 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
   json_str(f, r->output);
   fprintf(f, ",\n");
   json_params(f, r);
-  fprintf(f, "  \"counts\": {\"vertices\": %lld, \"tetrahedra\": %lld, \"interface_triangles\": %lld, \"working_tetrahedra\": %lld},\n",
-          (long long)r->nv, (long long)r->nt, (long long)r->ntri, (long long)r->working_tets);
+  fprintf(f, "  \"counts\": {\"vertices\": %lld, \"tetrahedra\": %lld, \"interface_triangles\": %lld, \"working_tetrahedra\": %lld, \"checksum\": \"%016llx\"},\n",
+          (long long)r->nv, (long long)r->nt, (long long)r->ntri, (long long)r->working_tets, (unsigned long long)r->checksum);
   const i2m_refine_stats_t *s = &r->stats;
   fprintf(f, "  \"refinement\": {\"insertions\": %lld, \"removals\": %lld, \"rollbacks\": %lld, \"failed\": %lld, \"duplicates\": %lld, ",
           (long long)s->insertions, (long long)s->removals, (long long)s->rollbacks, (long long)s->failed,
@@ -154,8 +154,12 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
     const i2m_threads_report_t *t = r->team;
     fprintf(f, "  \"threads\": {\"count\": %d, \"pinned\": %s, \"binding\": ", t->threads, t->pinned ? "true" : "false");
     json_str(f, t->binding);
-    fprintf(f, ", \"capacity_pauses\": %lld, \"coarse_seconds\": %.4f, \"fine_seconds\": %.4f, \"per_thread\": [",
-            (long long)t->pauses, t->coarse_seconds, t->fine_seconds);
+    fprintf(f, ", \"capacity_pauses\": %lld, \"coarse_seconds\": %.4f, \"fine_seconds\": %.4f, ", (long long)t->pauses,
+            t->coarse_seconds, t->fine_seconds);
+    fprintf(f, "\"deterministic\": %s, \"tile_mm\": %.4g, \"phases\": %lld, \"rounds\": %lld, \"sequential_ops\": %lld, ",
+            t->deterministic ? "true" : "false", t->tile_side, (long long)t->phases, (long long)t->rounds,
+            (long long)t->sequential_ops);
+    fprintf(f, "\"deferred\": %lld, \"per_thread\": [", (long long)r->stats.deferred);
     for (int k = 0; k < t->threads; k++) {
       const i2m_thread_figures_t *g = &t->thread[k];
       fprintf(f, "%s\n    {\"thread\": %d, \"core\": %d, \"insertions\": %lld, \"removals\": %lld, \"rollbacks\": %lld, "

@@ -51,11 +51,16 @@ void badlist_get(const badlist_t *q, const i2m_dt_t *dt, size_t i, bad_t *b)
   memcpy(b->v, q->wide ? q->v[i] : dt->tv + 4 * (size_t)b->t, sizeof b->v);
 }
 
-bad_t badlist_pop(badlist_t *q, const i2m_dt_t *dt)
+bool badlist_pop_live(badlist_t *q, const i2m_dt_t *dt, bad_t *b)
 {
-  bad_t b;
-  badlist_get(q, dt, --q->n, &b);
-  return b;
+  size_t i = --q->n;
+  b->t = q->e[i][0];
+  b->meta = q->e[i][1];
+  /* a generation moved on proves the tet gone, and its slot may be another's by now: the tet
+   * is not read at all (no lock needed for that) */
+  if (i2m_dt_meta(dt, b->t) != b->meta) return false;
+  memcpy(b->v, q->wide ? q->v[i] : dt->tv + 4 * (size_t)b->t, sizeof b->v);
+  return true;
 }
 
 void badlist_requeue_bottom(badlist_t *q, const bad_t *b)

@@ -8,24 +8,35 @@
 
 #include <string.h>
 
-void tet_geom(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g)
+void tet_centre(const i2m_refine_t *r, uint32_t t, tet_geom_t *g)
 {
   const i2m_dt_t *dt = r->dt;
   const uint32_t *v = dt->tv + 4 * (size_t)t;
-  bool flat = i2m_tet_circumcenter(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]),
-                                   i2m_dt_xyz(dt, v[3]), g->cc, &g->r2) != 0;
+  if (i2m_tet_circumcenter(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), g->cc,
+                           &g->r2) != 0)
+    g->r2 = INFINITY;
+}
+
+void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g)
+{
+  const i2m_dt_t *dt = r->dt;
   g->probe.d2 = INFINITY;
   g->probe.near = false;
-  if (flat || !isfinite(g->r2)) {
+  if (!isfinite(g->r2)) { /* flat */
     g->label = kind == PROBE_NEW ? 0 : tinfo(dt, t)->label;
-  } else if (kind == PROBE_NEW) {
-    i2m_edt_probe_world(r->edt, g->cc, (g->r2 > r->four_delta2 ? g->r2 : r->four_delta2), true, &g->probe);
-    g->label = g->probe.label;
-  } else {
-    /* within 2 delta too: R7 keeps track of the free vertices that close to an interface */
-    if (kind == PROBE_CLOSEST) i2m_edt_probe_world(r->edt, g->cc, (g->r2 > r->four_delta2 ? g->r2 : r->four_delta2), true, &g->probe);
-    g->label = tinfo(dt, t)->label;
+    return;
   }
+  /* the closest point within the ball, and within 2 delta (R7 keeps track of the free
+   * vertices that close to an interface) */
+  const double reach2 = g->r2 > r->four_delta2 ? g->r2 : r->four_delta2;
+  if (kind != PROBE_CENTRE) i2m_edt_probe_world(r->edt, g->cc, reach2, true, &g->probe);
+  g->label = kind == PROBE_NEW ? g->probe.label : tinfo(dt, t)->label;
+}
+
+void tet_geom(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g)
+{
+  tet_centre(r, t, g);
+  tet_probe(r, t, kind, g);
 }
 
 /* Size and ratio bounds at a point (world) with label index lab. */
@@ -110,6 +121,16 @@ static bool ball_meets_interface(const tet_geom_t *ti, double z[3], uint32_t *pa
   return *d2 <= ti->r2;
 }
 
+/* Deterministic mode: a tet of any label whose centre lies in the labelled block and whose
+ * radius exceeds the background bound (so that every cavity fits a tile's zone). */
+static bool too_big(const i2m_refine_t *r, const tet_geom_t *ti)
+{
+  if (!(ti->r2 > r->background_size2)) return false;
+  for (int a = 0; a < 3; a++)
+    if (!(ti->cc[a] >= r->block_lo[a] && ti->cc[a] <= r->block_hi[a])) return false;
+  return true;
+}
+
 static bool in_box(const i2m_dt_t *dt, const double p[3])
 {
   for (int a = 0; a < 3; a++)
@@ -129,18 +150,12 @@ static bool own_vertex_near(const i2m_refine_t *r, uint32_t t, const double z[3]
   return false;
 }
 
-/* R1's spacing test: is a surface vertex of the same patch within delta of z?  The tet's own
- * vertices first, then the grid. */
-static bool surface_vertex_near(const i2m_refine_t *r, uint32_t t, const double z[3], uint32_t patch)
-{
-  return own_vertex_near(r, t, z, patch) || vgrid_has_within(&r->surf, r->dt, z, r->delta, patch);
-}
-
 int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *ti)
 {
   const i2m_refine_t *r = w->r;
   double z[3], d2;
   uint32_t patch;
+  if (too_big(r, ti)) return LEVEL_SURFACE; /* (deterministic mode: first, as it keeps cavities in the zones) */
   if (ball_meets_interface(ti, z, &patch, &d2)) {
     if (!own_vertex_near(r, t, z, patch)) return LEVEL_SURFACE; /* R1 unless the grid finds a vertex: when popped */
     if (ti->r2 >= r->four_delta2 && in_box(r->dt, ti->cc)) return LEVEL_R2;
@@ -185,14 +200,28 @@ int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t sk
   const i2m_dt_t *dt = r->dt;
   tet_geom_t g;
   const tet_geom_t *ti = &g;
-  tet_geom(r, t, PROBE_CLOSEST, &g);
+  tet_centre(r, t, &g);
+  if (!tiles_ball_fits(w, g.cc, g.r2)) return -1; /* its cavity would most likely leave the zone */
+  tet_probe(r, t, PROBE_CLOSEST, &g);
   memset(a, 0, sizeof *a);
   a->seed = t;
+  a->level = LEVEL_SURFACE;
   double z[3], d2;
   uint32_t patch;
   bool meets = ball_meets_interface(ti, z, &patch, &d2);
   a->dist2 = d2;
-  if (meets && !(skip & (1u << 1)) && !surface_vertex_near(r, t, z, patch)) { /* R1 */
+  if (too_big(r, ti) && in_box(dt, ti->cc) && !(skip & (1u << 2 | 1u << 3 | 1u << 4))) { /* first: see classify_level */
+    memcpy(a->p, ti->cc, sizeof a->p);
+    a->kind = I2M_VK_FREE;
+    a->rule = 4;
+    return 1;
+  }
+  /* R1, unless a surface vertex of the patch lies within delta of z: the tet's own first,
+   * then the grid (which, near another tile's zone, may change meanwhile) */
+  bool r1 = meets && !(skip & (1u << 1)) && !own_vertex_near(r, t, z, patch);
+  if (r1 && !tiles_zone_holds(w, z)) return -1;
+  if (r1 && !vgrid_has_within(&r->surf, dt, z, r->delta, patch)) {
+
     memcpy(a->p, z, sizeof z);
     a->patch = patch;
     a->kind = I2M_VK_SURFACE;
@@ -214,6 +243,7 @@ int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t sk
     memcpy(a->p, ti->cc, sizeof a->p);
     a->kind = I2M_VK_FREE;
     a->rule = (meets && ti->r2 >= r->four_delta2) ? 2 : volume_rule(r, ti);
+    a->level = a->rule == 2 ? LEVEL_R2 : LEVEL_VOLUME;
     return 1;
   }
   return 0;

@@ -98,6 +98,7 @@ i2m_err_t i2m_refine_create(const i2m_image_t *img, const i2m_edt_t *edt, const 
   r->edt = edt;
   r->p = *params;
   atomic_init(&r->next_gid, 8);
+  r->background_size2 = INFINITY;
   I2M_CALL_GOTO(err, fail, setup_bounds(r));
   /* the virtual box: the image block (world) grown by its largest extent on every side */
   double lo[3], hi[3], ext = 0;
@@ -117,6 +118,8 @@ i2m_err_t i2m_refine_create(const i2m_image_t *img, const i2m_edt_t *edt, const 
   } else {
     i2m_image_world_bounds(img, ilo, ihi);
   }
+  memcpy(r->block_lo, ilo, sizeof ilo);
+  memcpy(r->block_hi, ihi, sizeof ihi);
   I2M_CALL_GOTO(err, fail, vgrid_init(&r->surf, ilo, ihi, 2.0 * r->p.delta));
   I2M_CALL_GOTO(err, fail, vgrid_init(&r->freev, ilo, ihi, 4.0 * r->p.delta));
   r->nworkers = 1;
@@ -137,6 +140,7 @@ void i2m_refine_destroy(i2m_refine_t **rp)
 {
   if (!rp || !*rp) return;
   i2m_refine_t *r = *rp;
+  i2m_refine_tiling_end(r);
   for (int k = 0; k < r->nworkers && r->workers; k++) worker_free(&r->workers[k]); /* accepts freed ones */
   i2m_free(&r->workers);
   vgrid_free(&r->surf);
@@ -177,6 +181,7 @@ void i2m_refine_get_stats(const i2m_refine_t *r, i2m_refine_stats_t *s)
     s->duplicates += w->duplicates;
     s->junction_skips += w->junction_skips;
     s->tets_created += w->tets_created;
+    s->deferred += w->deferred;
     s->seconds = fmax(s->seconds, w->seconds);
   }
 }

@@ -51,6 +51,7 @@ enum { LEVEL_SURFACE = 0, LEVEL_R2 = 1, LEVEL_VOLUME = 2, NLEVELS = 3 };
 /** What to do about a bad element. */
 typedef struct {
   int rule;           /* 0: nothing; 1..6: the rule */
+  int level;          /* the list it belongs to */
   double dist2;       /* squared distance from p to the nearest interface */
   double p[3];        /* the point to insert (grid frame) */
   uint32_t seed;      /* a tet whose circumball holds p */
@@ -85,6 +86,48 @@ typedef struct {
   i2m_gidx_t gid;
 } pending_t;
 
+/* ---- the deterministic mode (tiles.c) ---- */
+
+#define TILE_NONE UINT32_MAX
+
+/** An element handed over at the next barrier: to another tile, or to the sequential pass
+ *  (to = TILE_NONE).  (from, seq) orders the hand-overs independently of the threads. */
+typedef struct {
+  uint32_t to, from;
+  uint64_t seq;
+  int32_t level;  /* the bad element's list, or -1: a pending removal */
+  uint32_t t, meta;
+  pending_t pv;
+} handoff_t;
+
+/** A tile of the deterministic mode: its elements, its slots, its global ids. */
+typedef struct {
+  badlist_t q[NLEVELS];
+  pending_t *pend;
+  uint32_t npend, cap_pend;
+  i2m_dt_slots_t slots;
+  i2m_gidx_t gid_next;
+  uint64_t seq;       /* hand-overs made so far */
+  double zone[6];     /* lo, hi (world): the tile grown by the margin */
+  uint32_t grant;     /* tets granted per queued element in a phase (doubles when they run out) */
+} tile_t;
+
+typedef struct {
+  double origin[3], side, margin;
+  uint32_t n[3], ntiles;
+  tile_t *tile;                 /* owned: [ntiles] */
+  handoff_t *seq;               /* owned: the sequential pass's elements, in order */
+  size_t nseq, cap_seq;
+  handoff_t *merge;             /* owned: scratch of the barrier */
+  size_t cap_merge;
+  uint32_t *active;             /* owned: [ntiles] the tiles of a phase */
+  uint32_t nactive;
+  uint64_t *order;              /* owned: [ntiles] scratch: (less work, tile) keys */
+  int8_t *level;                /* owned: [slots] reclassification: each tet's list (-1: none) */
+  i2m_gidx_t gid_base;          /* ids of this tiling: gid_base + tile << 36 + k */
+  int64_t rounds, sequential_ops;
+} tiling_t;
+
 struct i2m_refine_worker {
   char pad_front[64];   /* keeps each worker's busy fields off its neighbours' cache lines */
   i2m_refine_t *r;      /* borrowed */
@@ -99,6 +142,11 @@ struct i2m_refine_worker {
   uint32_t ncreated, cap_created;
   i2m_refine_stats_t st;
   i2m_progress_t progress;
+  tile_t *tile;         /* deterministic mode: the tile it works on (NULL: none, or the sequential pass) */
+  uint32_t tile_id;
+  bool tile_full;       /* the tile's slots ran out: stop until the next phase */
+  handoff_t *out;       /* this phase's hand-overs */
+  size_t nout, cap_out;
   char pad_back[64];
 };
 
@@ -113,11 +161,16 @@ struct i2m_refine {
   double bisect_tol;      /* bisection tolerance (mm) */
   double min_spacing;
   double size_scale;      /* multiplies delta and every size bound (coarse phase: > 1) */
+  double background_size2; /* deterministic mode: squared radius above which any tet centred in
+                              the labelled block is split (INFINITY: none) */
   double *label_size;     /* owned: [nlabels] size bound per label index (INFINITY: none) */
   i2m_dt_t *dt;           /* owned */
   vgrid_t surf;           /* surface vertices, tagged with their patch (R1) */
   vgrid_t freev;          /* free vertices within 2 delta of an interface (R7) */
   _Atomic int64_t next_gid;
+  tiling_t *tiling;       /* owned: the deterministic mode's tiles, or NULL */
+  double block_lo[3], block_hi[3]; /* the labelled block (world): where surface points lie */
+  int tilings_made;       /* (each tiling has its own range of global ids) */
   i2m_refine_worker_t *workers; /* owned: [nworkers] */
   int nworkers;
 };
@@ -132,14 +185,17 @@ typedef enum {
 
 /** Circumcentre, radius, label and (as asked) what the image says about tet t's centre. */
 void tet_geom(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g);
+/** tet_geom in two steps: the centre and radius (INFINITY when flat), then the rest. */
+void tet_centre(const i2m_refine_t *r, uint32_t t, tet_geom_t *g);
+void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g);
 /** The list a tet (PROBE_NEW or PROBE_CLOSEST) belongs to, or -1.  R1's spacing test looks
  *  at the tet's own vertices only: when none is near, the grid is searched when the tet is
  *  popped (most tets die before their turn). */
 int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *g);
-/** The list an action's rule belongs to. */
-static inline int rule_level(int rule) { return rule == 2 ? LEVEL_R2 : rule == 3 || rule == 4 ? LEVEL_VOLUME : LEVEL_SURFACE; }
+
 /** The action for tet t (its vertices locked), skipping the rules whose bit (1 << rule) is
- *  set in skip (their point could not go in); 0 when nothing is to be done. */
+ *  set in skip (their point could not go in); 0 when nothing is to be done, -1 when R1's
+ *  spacing test would look beyond the worker's tile's zone (deterministic mode). */
 int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t skip);
 
 /* vgrid.c */
@@ -163,8 +219,9 @@ i2m_err_t vgrid_collect_within(const vgrid_t *g, const i2m_dt_t *dt, const doubl
 i2m_err_t badlist_push(badlist_t *q, const i2m_dt_t *dt, const bad_t *b);
 /** Entry i (vertices from the list, or from the mesh for a narrow list). */
 void badlist_get(const badlist_t *q, const i2m_dt_t *dt, size_t i, bad_t *b);
-/** Takes the top entry (the list must not be empty). */
-bad_t badlist_pop(badlist_t *q, const i2m_dt_t *dt);
+/** Takes the top entry (the list must not be empty); false, without reading the tet, when
+ *  the tet is gone (its generation moved on). */
+bool badlist_pop_live(badlist_t *q, const i2m_dt_t *dt, bad_t *b);
 /** Puts b (just popped: its slot is still allocated) at the bottom; the bottom entry moves
  *  to the top.  After a rollback the thread so works elsewhere first, away from the thread
  *  that holds the lock. */
@@ -174,6 +231,19 @@ void badlist_drop_bottom(badlist_t *q, size_t k);
 /** Makes the list wide or narrow (no other thread may use the mesh meanwhile). */
 i2m_err_t badlist_set_wide(badlist_t *q, const i2m_dt_t *dt, bool wide);
 void badlist_free(badlist_t *q);
+
+/* tiles.c */
+/** Deterministic mode: where an element created now goes.  Returns true when it was handed
+ *  over or queued elsewhere (another tile, or the sequential pass), false when it belongs to
+ *  the worker's own lists. */
+i2m_err_t tiles_route(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t meta, bool *taken);
+/** Deterministic mode: the element cannot be done in the tile's zone: the sequential pass
+ *  will do it (level -1: the pending removal pv). */
+i2m_err_t tiles_defer(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t meta, pending_t pv);
+/** Is world point x in the zone of the worker's tile (always, without a tile)? */
+bool tiles_zone_holds(const i2m_refine_worker_t *w, const double x[3]);
+/** Does the ball (centre c, squared radius r2) lie in that zone (always, without a tile)? */
+bool tiles_ball_fits(const i2m_refine_worker_t *w, const double c[3], double r2);
 
 /* worker.c */
 i2m_err_t worker_init(i2m_refine_worker_t *w, i2m_refine_t *r, uint32_t owner, bool locking);

@@ -34,11 +34,17 @@ i2m_err_t worker_push_entry(i2m_refine_worker_t *w, int level, const bad_t *b)
   return badlist_push(&w->q[level], w->r->dt, b);
 }
 
-/* Classifies tet t (its vertices locked, or a sequential run) and queues it if it is bad. */
+/* Classifies tet t (its vertices locked, or a sequential run) and queues it if it is bad (in
+ * the deterministic mode, where its centroid's tile wants it). */
 static i2m_err_t push_classified(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *g)
 {
   int level = classify_level(w, t, g);
   if (level < 0) return I2M_OK;
+  if (w->r->tiling) {
+    bool taken;
+    I2M_CALL(tiles_route(w, level, t, i2m_dt_meta(w->r->dt, t), &taken));
+    if (taken) return I2M_OK;
+  }
   bad_t b;
   b.t = t;
   b.meta = i2m_dt_meta(w->r->dt, t);
@@ -92,10 +98,26 @@ static void pend_bottom(i2m_refine_worker_t *w, pending_t pv)
   w->npend++;
 }
 
-/* Maps a failed kernel status to a step result (the element has been put back). */
-static int retry_later(i2m_refine_worker_t *w, i2m_dt_status_t st)
+/* An element that could not be done now (bad element b of list level, or the removal pv when
+ * b is NULL): nothing was changed and no lock is kept.  A thread in the deterministic mode
+ * leaves it to the sequential pass (a vertex outside its tile's zone), or keeps it for the
+ * tile's next turn and stops (the tile's slots ran out); otherwise it waits at the bottom of
+ * its list (another thread holds a vertex, or the capacity ran out: grow and retry). */
+static int put_back(i2m_refine_worker_t *w, int level, const bad_t *b, pending_t pv, i2m_dt_status_t st)
 {
   i2m_dt_unlock_all(&w->ctx);
+  if (w->tile && st == I2M_DT_FULL) {
+    w->tile_full = true;
+    if (b) return worker_push_entry(w, level, b) == I2M_OK ? I2M_STEP_FULL : I2M_STEP_ERROR;
+    w->pend[w->npend++] = pv; /* (it was just popped: its place is free) */
+    return I2M_STEP_FULL;
+  }
+  if (w->tile) {
+    w->st.deferred++;
+    return tiles_defer(w, b ? level : -1, b ? b->t : 0, b ? b->meta : 0, pv) == I2M_OK ? I2M_STEP_DONE : I2M_STEP_ERROR;
+  }
+  if (b) badlist_requeue_bottom(&w->q[level], b);
+  else pend_bottom(w, pv);
   if (st == I2M_DT_FULL) return I2M_STEP_FULL;
   w->st.rollbacks++;
   return I2M_STEP_ROLLBACK;
@@ -107,19 +129,13 @@ static int do_removal(i2m_refine_worker_t *w, pending_t pv)
 {
   i2m_dt_t *dt = w->r->dt;
   uint32_t v4[4] = {pv.v, pv.v, pv.v, pv.v};
-  if (!i2m_dt_lock_tet(&w->ctx, v4)) {
-    pend_bottom(w, pv);
-    return retry_later(w, I2M_DT_ROLLBACK);
-  }
+  if (!i2m_dt_lock_tet(&w->ctx, v4)) return put_back(w, -1, NULL, pv, I2M_DT_ROLLBACK);
   if (dt->vkind[pv.v] != I2M_VK_FREE || i2m_dt_gid(dt, pv.v) != pv.gid) {
     i2m_dt_unlock_all(&w->ctx);
     return I2M_STEP_DONE;
   }
   i2m_dt_status_t st = i2m_dt_remove(&w->ctx, pv.v);
-  if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) {
-    pend_bottom(w, pv);
-    return retry_later(w, st);
-  }
+  if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) return put_back(w, -1, NULL, pv, st);
   if (st != I2M_DT_OK) {
     i2m_dt_unlock_all(&w->ctx);
     if (st == I2M_DT_FAILED) {
@@ -138,10 +154,20 @@ static int do_removal(i2m_refine_worker_t *w, pending_t pv)
   return err == I2M_OK ? I2M_STEP_DONE : I2M_STEP_ERROR;
 }
 
-/* R7: queue the free vertices within 2 delta of the new surface vertex z. */
+static int cmp_pending(const void *x, const void *y)
+{
+  i2m_gidx_t a = ((const pending_t *)x)->gid, b = ((const pending_t *)y)->gid;
+  return (a > b) - (a < b);
+}
+
+/* R7: queue the free vertices within 2 delta of the new surface vertex z, in the order of
+ * their global ids (the grid's lists are in no fixed order when several threads fill them). */
 static i2m_err_t queue_r7(i2m_refine_worker_t *w, const double z[3])
 {
-  return vgrid_collect_within(&w->r->freev, w->r->dt, z, 2.0 * w->r->delta, &w->pend, &w->npend, &w->cap_pend);
+  uint32_t n0 = w->npend;
+  I2M_CALL(vgrid_collect_within(&w->r->freev, w->r->dt, z, 2.0 * w->r->delta, &w->pend, &w->npend, &w->cap_pend));
+  if (w->npend - n0 > 1) qsort(w->pend + n0, w->npend - n0, sizeof *w->pend, cmp_pending);
+  return I2M_OK;
 }
 
 /* Inserts the action's point; in a sequential run, a surface point whose seed's ball holds it
@@ -149,15 +175,21 @@ static i2m_err_t queue_r7(i2m_refine_worker_t *w, const double z[3])
 static i2m_dt_status_t insert_action(i2m_refine_worker_t *w, const action_t *a, uint32_t *v)
 {
   i2m_refine_t *r = w->r;
-  if (w->gid_next == w->gid_end) { /* global ids come in blocks: no shared counter per insertion */
+  if (!w->tile && w->gid_next == w->gid_end) { /* global ids come in blocks: no shared counter per insertion */
     w->gid_next = atomic_fetch_add_explicit(&r->next_gid, 1024, memory_order_relaxed);
     w->gid_end = w->gid_next + 1024;
   }
-  i2m_gidx_t gid = w->gid_next++;
+  i2m_gidx_t gid = w->tile ? w->tile->gid_next : w->gid_next;
   i2m_dt_status_t st = i2m_dt_insert(&w->ctx, a->p, gid, a->kind, a->seed, I2M_DT_NONE, v);
-  if (st == I2M_DT_NOT_IN_CONFLICT && !w->ctx.locking) {
+  /* (a walk could leave a tile's zone: there the sequential pass walks) */
+  if (st == I2M_DT_NOT_IN_CONFLICT && !w->ctx.locking && !w->tile) {
     uint32_t t = i2m_dt_locate(&w->ctx, a->p, a->seed);
     st = i2m_dt_insert(&w->ctx, a->p, gid, a->kind, t, I2M_DT_NONE, v);
+  }
+  if (st == I2M_DT_NOT_IN_CONFLICT && w->tile) st = I2M_DT_ROLLBACK;
+  if (st == I2M_DT_OK) {
+    if (w->tile) w->tile->gid_next++;
+    else w->gid_next++;
   }
   return st;
 }
@@ -189,13 +221,9 @@ int worker_step(i2m_refine_worker_t *w)
   int level = 0;
   while (level < NLEVELS && w->q[level].n == 0) level++;
   if (level == NLEVELS) return I2M_STEP_IDLE;
-  bad_t b = badlist_pop(&w->q[level], dt);
-  /* a generation moved on proves the tet gone (most popped entries are): no locks needed */
-  if (i2m_dt_meta(dt, b.t) != b.meta) return I2M_STEP_DONE;
-  if (!i2m_dt_lock_tet(&w->ctx, b.v)) {
-    badlist_requeue_bottom(&w->q[level], &b);
-    return retry_later(w, I2M_DT_ROLLBACK);
-  }
+  bad_t b;
+  if (!badlist_pop_live(&w->q[level], dt, &b)) return I2M_STEP_DONE; /* gone (most popped entries are) */
+  if (!i2m_dt_lock_tet(&w->ctx, b.v)) return put_back(w, level, &b, (pending_t){0, 0}, I2M_DT_ROLLBACK);
   if (i2m_dt_meta(dt, b.t) != b.meta) { /* stale: the tet is gone */
     i2m_dt_unlock_all(&w->ctx);
     return I2M_STEP_DONE;
@@ -205,29 +233,25 @@ int worker_step(i2m_refine_worker_t *w)
   action_t a;
   uint32_t v, skip = 0;
   for (;;) {
-    if (!classify_action(w, b.t, &a, skip)) {
+    int c = classify_action(w, b.t, &a, skip);
+    if (c < 0) return put_back(w, level, &b, (pending_t){0, 0}, I2M_DT_ROLLBACK); /* beyond the tile's zone */
+    if (c == 0) {
       i2m_dt_unlock_all(&w->ctx);
       return I2M_STEP_DONE;
     }
-    if (skip == 0 && rule_level(a.rule) > level) { /* its list comes later: wait there */
-      i2m_err_t err = worker_push_entry(w, rule_level(a.rule), &b);
+    if (skip == 0 && a.level > level) { /* its list comes later: wait there */
+      i2m_err_t err = worker_push_entry(w, a.level, &b);
       i2m_dt_unlock_all(&w->ctx);
       return err == I2M_OK ? I2M_STEP_DONE : I2M_STEP_ERROR;
     }
     i2m_dt_status_t st = insert_action(w, &a, &v);
-    if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) {
-      badlist_requeue_bottom(&w->q[level], &b);
-      return retry_later(w, st);
-    }
+    if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) return put_back(w, level, &b, (pending_t){0, 0}, st);
     if (st == I2M_DT_OK) break;
     if (st == I2M_DT_DUPLICATE) w->st.duplicates++;
     else w->st.failed++;
     skip |= a.rule >= 2 && a.rule <= 4 ? (1u << 2 | 1u << 3 | 1u << 4) : 1u << a.rule;
     /* the failed attempt released every lock: take the tet's again */
-    if (!i2m_dt_lock_tet(&w->ctx, b.v)) {
-      badlist_requeue_bottom(&w->q[level], &b);
-      return retry_later(w, I2M_DT_ROLLBACK);
-    }
+    if (!i2m_dt_lock_tet(&w->ctx, b.v)) return put_back(w, level, &b, (pending_t){0, 0}, I2M_DT_ROLLBACK);
     if (i2m_dt_meta(dt, b.t) != b.meta) {
       i2m_dt_unlock_all(&w->ctx);
       return I2M_STEP_DONE;

@@ -298,6 +298,112 @@ static void report_fill(team_t *tm, i2m_threads_report_t *rep)
   else snprintf(rep->binding, sizeof rep->binding, "binding failed; threads float");
 }
 
+/* ---- the deterministic mode: in each round, the tiles of one colour at a time (threads
+ * take tiles in turn), a barrier after each colour, then worker 0's sequential pass ---- */
+
+typedef enum { JOB_CLASSIFY, JOB_TILES } job_kind_t;
+
+typedef struct {
+  team_t *tm;
+  job_kind_t kind;
+  const uint32_t *tiles; /* JOB_TILES: the phase's tiles */
+  uint32_t ntiles;
+  _Atomic uint32_t next; /* the next tile to take */
+} job_t;
+
+static _Atomic(job_t *) active_job; /* (as active_team: handed over with release/acquire) */
+
+static void job_thread(void)
+{
+  job_t *jb = atomic_load_explicit(&active_job, memory_order_acquire);
+  team_t *tm = jb->tm;
+  int k = omp_get_thread_num();
+  if (tm->pin && tm->fig[k].core == -2) tm->fig[k].core = pinning_bind_thread(tm->pin, k);
+  double t0 = i2m_wtime();
+  i2m_err_t err = I2M_OK;
+  if (jb->kind == JOB_CLASSIFY) {
+    err = i2m_refine_tiling_classify(tm->r, k, tm->T);
+  } else {
+    for (;;) {
+      uint32_t i = atomic_fetch_add_explicit(&jb->next, 1, memory_order_relaxed);
+      if (i >= jb->ntiles || err != I2M_OK) break;
+      err = i2m_refine_tile_run(tm->r, k, jb->tiles[i]);
+    }
+  }
+  tm->fig[k].busy_seconds += i2m_wtime() - t0;
+  if (err != I2M_OK) team_fail(tm, err);
+  atomic_fetch_add_explicit(&tm->finished, 1, memory_order_release);
+}
+
+/* Every thread runs the job; returns when all are done. */
+static i2m_err_t run_job(team_t *tm, job_t *jb)
+{
+  atomic_store_explicit(&tm->finished, 0, memory_order_relaxed);
+  atomic_store_explicit(&active_job, jb, memory_order_release);
+  I2M_OMP(omp parallel num_threads(tm->T))
+  job_thread();
+  while (atomic_load_explicit(&tm->finished, memory_order_acquire) < tm->T) sched_yield();
+  atomic_store_explicit(&active_job, NULL, memory_order_relaxed);
+  if (tm->err != I2M_OK) return i2m_error_set(tm->err, __FILE__, __LINE__, "%s", tm->errmsg);
+  return I2M_OK;
+}
+
+/* Rounds until no tile and no sequential pass has anything left. */
+static i2m_err_t run_tiled(team_t *tm, i2m_threads_report_t *rep)
+{
+  i2m_refine_t *r = tm->r;
+  i2m_err_t err = I2M_OK;
+  while (err == I2M_OK && i2m_refine_tiling_has_work(r)) {
+    for (int color = 0; color < 8 && err == I2M_OK; color++) {
+      job_t jb = {tm, JOB_TILES, NULL, 0, 0};
+      err = i2m_refine_tiling_phase(r, color, &jb.tiles, &jb.ntiles);
+      if (err != I2M_OK || jb.ntiles == 0) continue;
+      err = run_job(tm, &jb);
+      if (err == I2M_OK) err = i2m_refine_tiling_merge(r);
+      rep->phases++;
+    }
+    if (err == I2M_OK) err = i2m_refine_tiling_sequential(r);
+  }
+  double side;
+  int64_t rounds, seq;
+  i2m_refine_tiling_figures(r, &side, &rounds, &seq);
+  rep->tile_side = side; /* (the fine phase's, the last one set) */
+  rep->rounds += rounds;
+  rep->sequential_ops += seq;
+  i2m_refine_tiling_end(r);
+  return err;
+}
+
+/* The deterministic mode's phases: the coarse one, then every tet classified again and the
+ * fine one. */
+static i2m_err_t refine_deterministic(team_t *tm, const i2m_threads_opts_t *o, i2m_threads_report_t *rep)
+{
+  i2m_refine_t *r = tm->r;
+  bool coarse = o->coarse_factor > 1;
+  double t0 = i2m_wtime();
+  i2m_err_t err = I2M_OK;
+  i2m_refine_tiling_bound(r);
+  if (coarse) {
+    i2m_refine_set_scale(r, o->coarse_factor);
+    err = i2m_refine_tiling_begin(r);
+    if (err == I2M_OK) err = run_tiled(tm, rep);
+    i2m_refine_set_scale(r, 1.0);
+  }
+  double t1 = i2m_wtime();
+  if (err == I2M_OK) err = i2m_refine_tiling_begin(r);
+  if (err == I2M_OK && coarse) {
+    job_t jb = {tm, JOB_CLASSIFY, NULL, 0, 0};
+    err = i2m_refine_tiling_prepare_classify(r);
+    if (err == I2M_OK) err = run_job(tm, &jb);
+    if (err == I2M_OK) err = i2m_refine_tiling_collect(r);
+  }
+  if (err == I2M_OK) err = run_tiled(tm, rep);
+  i2m_refine_tiling_end(r); /* (after a failure too) */
+  rep->coarse_seconds = coarse ? t1 - t0 : 0;
+  rep->fine_seconds = i2m_wtime() - t1;
+  return err;
+}
+
 i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep)
 {
   int T = o->threads > 0 ? o->threads : i2m_threads_default();
@@ -311,6 +417,14 @@ i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_t
     return err;
   }
   err = team_init(&tm, r, T, o->pin);
+  if (o->deterministic) {
+    rep->deterministic = 1;
+    if (err == I2M_OK) err = refine_deterministic(&tm, o, rep);
+    report_fill(&tm, rep);
+    team_free(&tm);
+    atomic_store(&team_busy, 0);
+    return err;
+  }
   bool coarse = o->coarse_factor > 1;
   double t0 = i2m_wtime();
   if (err == I2M_OK && coarse) { /* the coarse mesh: delta and the size bounds x the factor */

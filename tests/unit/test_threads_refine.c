@@ -37,10 +37,21 @@ typedef struct {
   double volume[3];
   int64_t pauses;
   double coarse_seconds;
+  uint64_t checksum; /* of the whole triangulation (order-independent) */
+  int64_t sequential_ops;
 } outcome_t;
+
+static outcome_t mesh_and_check_mode(const i2m_image_t *img, int T, const i2m_refine_params_t *p, double coarse,
+                                     bool deterministic);
 
 /* Refines img on T threads and checks validity and every guarantee. */
 static outcome_t mesh_and_check(const i2m_image_t *img, int T, const i2m_refine_params_t *p, double coarse)
+{
+  return mesh_and_check_mode(img, T, p, coarse, false);
+}
+
+static outcome_t mesh_and_check_mode(const i2m_image_t *img, int T, const i2m_refine_params_t *p, double coarse,
+                                     bool deterministic)
 {
   outcome_t o;
   memset(&o, 0, sizeof o);
@@ -49,7 +60,7 @@ static outcome_t mesh_and_check(const i2m_image_t *img, int T, const i2m_refine_
   i2m_tetmesh_t *m = NULL;
   CU_ASSERT_FATAL(i2m_edt_create(img, &e) == I2M_OK);
   CU_ASSERT_FATAL(i2m_refine_create(img, e, p, &r) == I2M_OK);
-  i2m_threads_opts_t to = {T, coarse, true};
+  i2m_threads_opts_t to = {T, coarse, true, deterministic};
   i2m_threads_report_t rep;
   i2m_err_t err = i2m_threads_refine(r, &to, &rep);
   if (err) fprintf(stderr, "%s\n", i2m_error_message());
@@ -57,7 +68,11 @@ static outcome_t mesh_and_check(const i2m_image_t *img, int T, const i2m_refine_
   CU_ASSERT_EQUAL(rep.threads, T);
   o.pauses = rep.pauses;
   o.coarse_seconds = rep.coarse_seconds;
+  o.sequential_ops = rep.sequential_ops;
+  CU_ASSERT_EQUAL(rep.deterministic, deterministic);
   i2m_threads_report_free(&rep);
+  int64_t ntw = 0;
+  o.checksum = i2m_dt_checksum(i2m_refine_dt(r), &ntw);
   err = i2m_dt_check(i2m_refine_dt(r), true);
   if (err) fprintf(stderr, "%s\n", i2m_error_message());
   CU_ASSERT_EQUAL_FATAL(err, I2M_OK);
@@ -131,7 +146,30 @@ static void test_growth_pauses_and_coarse_phase(void)
   i2m_image_destroy(&img);
 }
 
+/* The deterministic mode: 1, 2 and 4 threads build the very same triangulation (equal
+ * order-independent checksums over the global vertex ids), valid and meeting every
+ * guarantee, with and without a coarse phase. */
+static void test_deterministic_mode(void)
+{
+  i2m_image_t *img = make_image(22, 1.0);
+  i2m_refine_params_t p;
+  i2m_refine_params_default(&p);
+  const int T[3] = {1, 2, 4};
+  for (int coarse = 0; coarse < 2; coarse++) {
+    outcome_t o[3];
+    for (int i = 0; i < 3; i++) o[i] = mesh_and_check_mode(img, T[i], &p, coarse ? 4.0 : 1.0, true);
+    for (int i = 1; i < 3; i++) {
+      CU_ASSERT_EQUAL(o[i].checksum, o[0].checksum);
+      CU_ASSERT_EQUAL(o[i].nt, o[0].nt);
+      CU_ASSERT_EQUAL(o[i].sequential_ops, o[0].sequential_ops);
+      for (int l = 0; l < 3; l++) CU_ASSERT_EQUAL(o[i].volume[l], o[0].volume[l]);
+    }
+  }
+  i2m_image_destroy(&img);
+}
+
 static const test_case_t cases[] = {
+    {"deterministic mode: 1, 2, 4 threads give the same triangulation", test_deterministic_mode},
     {"1, 2, 4 threads: valid, guarantees, volumes agree", test_thread_counts_agree},
     {"8 threads on a tiny image (maximum contention)", test_max_contention},
     {"capacity growth pauses, coarse phase", test_growth_pauses_and_coarse_phase},

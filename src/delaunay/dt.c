@@ -22,7 +22,7 @@ i2m_err_t i2m_dt_reserve(i2m_dt_t *dt, uint32_t nv, uint32_t nt)
             "a process can hold at most 2^30 tetrahedra (asked for %u); use more MPI ranks", nt);
   if (nv > dt->cap_v) {
     I2M_CALL(i2m_realloc_large((size_t)nv * 4, sizeof(double), &dt->xyzw));
-    I2M_CALL(i2m_realloc(nv, sizeof(uint8_t), &dt->vkind));
+    I2M_CALL(i2m_realloc_large(nv, sizeof(uint8_t), &dt->vkind));
     memset(dt->vkind + dt->cap_v, I2M_VK_DEAD, nv - dt->cap_v); /* slots handed out in chunks */
     I2M_CALL(i2m_realloc_large(nv, sizeof(uint32_t), &dt->vtet));
     I2M_CALL(grow_atomic_u32(&dt->vlock, dt->cap_v, nv, 0));

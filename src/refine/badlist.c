@@ -9,8 +9,8 @@
 
 static i2m_err_t set_capacity(badlist_t *q, size_t cap)
 {
-  I2M_CALL(i2m_realloc(cap, sizeof *q->e, &q->e));
-  if (q->wide) I2M_CALL(i2m_realloc(cap, sizeof *q->v, &q->v));
+  I2M_CALL(i2m_realloc_large(cap, sizeof *q->e, &q->e));
+  if (q->wide) I2M_CALL(i2m_realloc_large(cap, sizeof *q->v, &q->v));
   q->cap = cap;
   return I2M_OK;
 }

@@ -11,11 +11,11 @@ i2m_err_t i2m_tetmesh_create(int64_t nv, int64_t nt, int64_t ntri, i2m_tetmesh_t
   m->nv = nv;
   m->nt = nt;
   m->ntri = ntri;
-  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)nv * 3, sizeof(double), &m->xyz));
-  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)nt * 4, sizeof(int32_t), &m->tet));
-  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)nt, sizeof(int64_t), &m->tet_label));
-  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)ntri * 3, sizeof(int32_t), &m->tri));
-  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)ntri * 2, sizeof(int64_t), &m->tri_label));
+  I2M_CALL_GOTO(err, fail, i2m_realloc_large((size_t)nv * 3, sizeof(double), &m->xyz));
+  I2M_CALL_GOTO(err, fail, i2m_realloc_large((size_t)nt * 4, sizeof(int32_t), &m->tet));
+  I2M_CALL_GOTO(err, fail, i2m_realloc_large((size_t)nt, sizeof(int64_t), &m->tet_label));
+  I2M_CALL_GOTO(err, fail, i2m_realloc_large((size_t)ntri * 3, sizeof(int32_t), &m->tri));
+  I2M_CALL_GOTO(err, fail, i2m_realloc_large((size_t)ntri * 2, sizeof(int64_t), &m->tri_label));
   *out = m;
   return I2M_OK;
 fail:

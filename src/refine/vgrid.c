@@ -81,8 +81,8 @@ void vgrid_free(vgrid_t *g)
 i2m_err_t vgrid_reserve(vgrid_t *g, uint32_t cap)
 {
   if (cap <= g->cap_next) return I2M_OK;
-  I2M_CALL(i2m_realloc(cap, sizeof *g->next, &g->next));
-  I2M_CALL(i2m_realloc(cap, sizeof *g->tag, &g->tag));
+  I2M_CALL(i2m_realloc_large(cap, sizeof *g->next, &g->next));
+  I2M_CALL(i2m_realloc_large(cap, sizeof *g->tag, &g->tag));
   for (uint32_t v = g->cap_next; v < cap; v++) atomic_init(&g->next[v], I2M_DT_NONE);
   g->cap_next = cap;
   return I2M_OK;

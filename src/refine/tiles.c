@@ -192,7 +192,8 @@ i2m_err_t i2m_refine_tile_run(i2m_refine_t *r, int k, uint32_t id)
   bool full = w->tile_full;
   unbind(w);
   w->st.seconds += i2m_wtime() - t0;
-  if (full) r->tiling->tile[id].grant *= 2; /* the tile ran out of slots: more next time */
+  tile_t *tl = &r->tiling->tile[id];
+  if (full && tl->grant < (1u << 16)) tl->grant *= 2; /* the tile ran out of slots: more next time */
   I2M_CHECK(s == I2M_STEP_IDLE || (s == I2M_STEP_FULL && full), I2M_ERR_INTERNAL, "refinement failed in a tile: %s",
             i2m_error_message());
   return I2M_OK;

@@ -263,7 +263,7 @@ static i2m_err_t tiling_make(i2m_refine_t *r, tiling_t **out)
       tl->zone[3 + a] = g->origin[a] + (c[a] + 1) * g->side + g->margin;
     }
     tl->gid_next = g->gid_base + ((i2m_gidx_t)id << TILE_GID_SHIFT);
-    tl->grant = 4;
+    tl->grant = 1;
   }
   if (err != I2M_OK) tiling_free(&g);
   *out = g;
@@ -379,7 +379,7 @@ i2m_err_t i2m_refine_tiling_phase(i2m_refine_t *r, int color, const uint32_t **t
   g->nactive = n;
   for (uint32_t i = 0; i < n; i++) { /* slots for the tile's work (it stops when they run out) */
     tile_t *tl = &g->tile[g->active[i]];
-    uint64_t want = (uint64_t)tl->grant * tile_work(tl) + 256;
+    uint64_t want = (uint64_t)tl->grant * tile_work(tl) + 64;
     if (want > (1u << 24)) want = 1u << 24;
     I2M_CALL(i2m_dt_slots_grant(r->dt, &tl->slots, (uint32_t)want, (uint32_t)(want / 4 + 64)));
   }

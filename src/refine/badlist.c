@@ -33,7 +33,7 @@ i2m_err_t badlist_push(badlist_t *q, const i2m_dt_t *dt, const bad_t *b)
 {
   if (q->n == q->cap) {
     if (q->cap >= 4096) compact(q, dt); /* before growing: most may be stale */
-    if (q->n + q->cap / 4 >= q->cap) I2M_CALL(set_capacity(q, q->cap ? 2 * q->cap : 1024));
+    if (q->n + q->cap / 4 >= q->cap) I2M_CALL(set_capacity(q, q->cap ? 2 * q->cap : 64));
   } else if (q->cap >= LIST_SHRINK_MIN && q->n < q->cap / 8) {
     I2M_CALL(set_capacity(q, q->cap / 2)); /* keeps a popped slot above n */
   }

@@ -379,7 +379,7 @@ i2m_err_t i2m_refine_tiling_phase(i2m_refine_t *r, int color, const uint32_t **t
   g->nactive = n;
   for (uint32_t i = 0; i < n; i++) { /* slots for the tile's work (it stops when they run out) */
     tile_t *tl = &g->tile[g->active[i]];
-    uint64_t want = (uint64_t)tl->grant * tile_work(tl) + 64;
+    uint64_t want = (uint64_t)tl->grant * tile_work(tl) / 4 + 64; /* (most queued entries are stale) */
     if (want > (1u << 24)) want = 1u << 24;
     I2M_CALL(i2m_dt_slots_grant(r->dt, &tl->slots, (uint32_t)want, (uint32_t)(want / 4 + 64)));
   }
@@ -415,8 +415,16 @@ i2m_err_t i2m_refine_tiling_merge(i2m_refine_t *r)
     w->nout = 0;
   }
   qsort(g->merge, n, sizeof *g->merge, cmp_handoff); /* the order of the threads is gone */
-  for (uint32_t i = 0; i < g->nactive; i++) /* what the phase's tiles did not use, for the next */
-    i2m_dt_slots_return(r->dt, &g->tile[g->active[i]].slots);
+  for (uint32_t i = 0; i < g->nactive; i++) { /* what the phase's tiles did not use, for the next */
+    tile_t *tl = &g->tile[g->active[i]];
+    i2m_dt_slots_release(r->dt, &tl->slots);
+    for (int l = 0; l < NLEVELS; l++) /* (hundreds of tiles: keep no memory for the empty ones) */
+      if (tl->q[l].n == 0) badlist_free(&tl->q[l]);
+    if (tl->npend == 0) {
+      i2m_free(&tl->pend);
+      tl->cap_pend = 0;
+    }
+  }
   for (size_t i = 0; i < n; i++) {
     handoff_t h = g->merge[i];
     if (h.level >= 0 && i2m_dt_meta(r->dt, h.t) != h.meta) continue; /* gone meanwhile */

@@ -374,7 +374,7 @@ i2m_err_t i2m_refine_tiling_phase(i2m_refine_t *r, int color, const uint32_t **t
       size_t wk = tile_work(&g->tile[id]);
       g->order[n++] = (uint64_t)(UINT32_MAX - (wk < UINT32_MAX ? wk : UINT32_MAX)) << 32 | id;
     }
-  qsort(g->order, n, sizeof *g->order, cmp_u64);
+  if (n > 1) qsort(g->order, n, sizeof *g->order, cmp_u64);
   for (uint32_t i = 0; i < n; i++) g->active[i] = (uint32_t)g->order[i];
   g->nactive = n;
   for (uint32_t i = 0; i < n; i++) { /* slots for the tile's work (it stops when they run out) */
@@ -414,7 +414,7 @@ i2m_err_t i2m_refine_tiling_merge(i2m_refine_t *r)
     n += w->nout;
     w->nout = 0;
   }
-  qsort(g->merge, n, sizeof *g->merge, cmp_handoff); /* the order of the threads is gone */
+  if (n > 1) qsort(g->merge, n, sizeof *g->merge, cmp_handoff); /* the order of the threads is gone */
   for (uint32_t i = 0; i < g->nactive; i++) { /* what the phase's tiles did not use, for the next */
     tile_t *tl = &g->tile[g->active[i]];
     i2m_dt_slots_release(r->dt, &tl->slots);
@@ -464,7 +464,7 @@ i2m_err_t i2m_refine_tiling_sequential(i2m_refine_t *r)
     I2M_CHECK(s == I2M_STEP_IDLE, I2M_ERR_INTERNAL, "refinement failed: %s", i2m_error_message());
     g->sequential_ops++;
   }
-  memmove(g->seq, g->seq + n0, (g->nseq - n0) * sizeof *g->seq); /* what it sent on: next time */
+  if (g->nseq > n0) memmove(g->seq, g->seq + n0, (g->nseq - n0) * sizeof *g->seq); /* what it sent on: next time */
   g->nseq -= n0;
   g->rounds++;
   w->st.seconds += i2m_wtime() - t0;

@@ -26,6 +26,7 @@ void worker_free(i2m_refine_worker_t *w)
   i2m_free(&w->pend);
   i2m_free(&w->created);
   i2m_free(&w->geom);
+  i2m_free(&w->out);
   memset(w, 0, sizeof *w);
 }
 

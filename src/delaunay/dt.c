@@ -253,11 +253,21 @@ i2m_err_t ctx_vpool_push(i2m_dt_ctx_t *ctx, uint32_t v) { return push_u32(&ctx->
 
 #define FRESH_CHUNK 256u
 
-/* Moves up to FRESH_CHUNK never-used tet slots into the context's fresh range. */
+/* Moves up to FRESH_CHUNK never-used tet slots into the context's fresh range (alone: exactly
+ * FRESH_CHUNK, growing the arrays when needed). */
 static bool take_fresh_tets(i2m_dt_ctx_t *ctx)
 {
   i2m_dt_t *dt = ctx->dt;
   uint32_t cur = atomic_load_explicit(&dt->nt_atomic, memory_order_relaxed);
+  if (!ctx->locking) { /* alone: always a whole chunk (slot numbers independent of the capacity) */
+    if ((uint64_t)cur + FRESH_CHUNK > dt->cap_t &&
+        i2m_dt_reserve(dt, dt->cap_v, (uint32_t)((uint64_t)cur + FRESH_CHUNK + dt->cap_t / 2)) != I2M_OK)
+      return false;
+    atomic_store_explicit(&dt->nt_atomic, cur + FRESH_CHUNK, memory_order_relaxed);
+    ctx->slots.fresh_next = cur;
+    ctx->slots.fresh_end = cur + FRESH_CHUNK;
+    return true;
+  }
   for (;;) {
     if (cur >= dt->cap_t) return false;
     uint32_t take = dt->cap_t - cur < FRESH_CHUNK ? dt->cap_t - cur : FRESH_CHUNK;

@@ -496,16 +496,13 @@ static void probe_packed(const i2m_edt_t *e, const double p[3], double max_d2, b
   affine3(e->w2k, p, u);
   int64_t c[3];
   bool inside = true;
-  double out2 = 0; /* squared distance to K (mm) */
   for (int k = 0; k < 3; k++) {
     if (!(u[k] >= 0.0)) { /* (NaN too) */
       c[k] = 0;
       inside = false;
-      out2 += i2m_sq(u[k] * s[k]);
     } else if (u[k] >= (double)m[k]) {
       c[k] = m[k] - 1;
       inside = false;
-      out2 += i2m_sq((u[k] - (double)m[k]) * s[k]);
     } else {
       c[k] = (int64_t)u[k];
     }
@@ -515,24 +512,21 @@ static void probe_packed(const i2m_edt_t *e, const double p[3], double max_d2, b
   const uint32_t f = word & e->feat_mask;
   uint32_t fb[3];
   box_coords(e, f, fb);
-  if (!inside) {
-    out->near = !(out2 > max_d2);
-  } else {
-    double dc2 = 0;
-    for (int k = 0; k < 3; k++) dc2 += i2m_sq((double)(c[k] - (int64_t)fb[k]) * s[k]);
-    const double reach = e->diagonal + sqrt(max_d2);
-    out->near = !(dc2 > reach * reach);
+  /* p clamped into the feature voxel: every point of its faces (where the closest point is
+   * sought) is at least that far from p */
+  double q0[3], box2 = 0;
+  for (int k = 0; k < 3; k++) {
+    double lo = (double)fb[k], hi = lo + 1.0;
+    q0[k] = u[k] < lo ? lo : u[k] > hi ? hi : u[k];
+    box2 += i2m_sq((u[k] - q0[k]) * s[k]);
   }
+  out->near = !(box2 > max_d2);
   if (!closest || !out->near) return;
   /* the closest point on the faces between the feature voxel and its differently labelled
    * neighbours: p clamped into the voxel, then onto each such face */
   const int64_t stride[3] = {1, m[0], m[0] * m[1]};
   const int lb = (int)((uint32_t)e->ft[f] >> e->label_shift);
-  double q0[3], best = INFINITY, zk[3] = {0, 0, 0};
-  for (int k = 0; k < 3; k++) {
-    double lo = (double)fb[k], hi = lo + 1.0;
-    q0[k] = u[k] < lo ? lo : u[k] > hi ? hi : u[k];
-  }
+  double best = INFINITY, zk[3] = {0, 0, 0};
   for (int ax = 0; ax < 3; ax++)
     for (int dir = -1; dir <= 1; dir += 2) {
       const int64_t nb = (int64_t)fb[ax] + dir;

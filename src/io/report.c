@@ -137,9 +137,9 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
   fprintf(f, "  \"counts\": {\"vertices\": %lld, \"tetrahedra\": %lld, \"interface_triangles\": %lld, \"working_tetrahedra\": %lld, \"checksum\": \"%016llx\"},\n",
           (long long)r->nv, (long long)r->nt, (long long)r->ntri, (long long)r->working_tets, (unsigned long long)r->checksum);
   const i2m_refine_stats_t *s = &r->stats;
-  fprintf(f, "  \"refinement\": {\"insertions\": %lld, \"removals\": %lld, \"rollbacks\": %lld, \"failed\": %lld, \"duplicates\": %lld, ",
+  fprintf(f, "  \"refinement\": {\"insertions\": %lld, \"removals\": %lld, \"rollbacks\": %lld, \"failed\": %lld, \"duplicates\": %lld, \"tets_created\": %lld, ",
           (long long)s->insertions, (long long)s->removals, (long long)s->rollbacks, (long long)s->failed,
-          (long long)s->duplicates);
+          (long long)s->duplicates, (long long)s->tets_created);
   fprintf(f, "\"rules\": {\"R1\": %lld, \"R2\": %lld, \"R3\": %lld, \"R4\": %lld, \"R5\": %lld, \"R6\": %lld, \"R7\": %lld}},\n",
           (long long)s->rule[1], (long long)s->rule[2], (long long)s->rule[3], (long long)s->rule[4],
           (long long)s->rule[5], (long long)s->rule[6], (long long)s->rule[7]);

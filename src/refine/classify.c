@@ -26,9 +26,10 @@ void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t 
     g->label = kind == PROBE_NEW ? 0 : tinfo(dt, t)->label;
     return;
   }
-  /* the closest point within the ball, and within 2 delta (R7 keeps track of the free
-   * vertices that close to an interface) */
-  const double reach2 = g->r2 > r->four_delta2 ? g->r2 : r->four_delta2;
+  /* the closest point within the ball (all a new tet's classification asks), and when an
+   * action is chosen within 2 delta too (R7 keeps track of the free vertices that close to
+   * an interface); the probe skips the closest point beyond that reach */
+  const double reach2 = kind == PROBE_NEW || g->r2 > r->four_delta2 ? g->r2 : r->four_delta2;
   if (kind != PROBE_CENTRE) i2m_edt_probe_world(r->edt, g->cc, reach2, true, &g->probe);
   g->label = kind == PROBE_NEW ? g->probe.label : tinfo(dt, t)->label;
 }

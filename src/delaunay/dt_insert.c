@@ -182,7 +182,7 @@ static I2M_INLINE i2m_dt_status_t cavity_push(i2m_dt_ctx_t *ctx, uint32_t t, con
  * vertex i replaced by its apex, negatively oriented; the local numbers of its other
  * vertices are looked up only when it joins.  Inlined with a constant i. */
 static I2M_INLINE i2m_dt_status_t cavity_visit(i2m_dt_ctx_t *ctx, uint32_t k, uint32_t c, const uint32_t cl[4],
-                                           uint32_t i, const double *p, i2m_gidx_t gid)
+                                               uint32_t i, const double *p, i2m_gidx_t gid, bool zoned)
 {
   i2m_dt_t *dt = ctx->dt;
   const uint32_t n = dt->tn[4 * (size_t)c + i];
@@ -191,7 +191,7 @@ static I2M_INLINE i2m_dt_status_t cavity_visit(i2m_dt_ctx_t *ctx, uint32_t k, ui
   const uint32_t m = i2m_dt_meta(dt, u);
   if (m & I2M_TM_MARK) return I2M_DT_OK; /* inside the cavity: not a boundary face */
   const uint32_t *uv = dt->tv + 4 * (size_t)u;
-  if (ctx->zone && I2M_UNLIKELY(!zone_holds(ctx, uv[j])) && (local_owner(ctx, uv[j]) != ctx->owner)) {
+  if (zoned && I2M_UNLIKELY(!zone_holds(ctx, uv[j])) && (local_owner(ctx, uv[j]) != ctx->owner)) {
     /* zone mode: a vertex outside the zone may be read, not numbered; u may stay outside */
     if (conflict_across_unnumbered(ctx, cl, i, uv[j], p, gid) >= 0) return boundary_push(ctx, k << 2 | i, n);
     ctx->conflict_owner = 0;
@@ -209,19 +209,36 @@ static I2M_INLINE i2m_dt_status_t cavity_visit(i2m_dt_ctx_t *ctx, uint32_t k, ui
 /* Breadth-first search of the tets whose circumballs hold p, from a seed in conflict.  Every
  * vertex met gets a local number (and, in threaded runs, is locked); the outside tets'
  * apexes are locked too, as the new tets' neighbours will change. */
-static i2m_dt_status_t cavity_search(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid)
+static I2M_INLINE i2m_dt_status_t cavity_search_in(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid, bool zoned)
 {
   for (uint32_t k = 0; k < ctx->ncav; k++) {
     const uint32_t c = ctx->cav[k];
     uint32_t cl[4];
     memcpy(cl, ctx->cavl + 4 * (size_t)k, sizeof cl);
     i2m_dt_status_t st;
-    if ((st = cavity_visit(ctx, k, c, cl, 0, p, gid)) != I2M_DT_OK) return st;
-    if ((st = cavity_visit(ctx, k, c, cl, 1, p, gid)) != I2M_DT_OK) return st;
-    if ((st = cavity_visit(ctx, k, c, cl, 2, p, gid)) != I2M_DT_OK) return st;
-    if ((st = cavity_visit(ctx, k, c, cl, 3, p, gid)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(ctx, k, c, cl, 0, p, gid, zoned)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(ctx, k, c, cl, 1, p, gid, zoned)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(ctx, k, c, cl, 2, p, gid, zoned)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(ctx, k, c, cl, 3, p, gid, zoned)) != I2M_DT_OK) return st;
   }
   return I2M_DT_OK;
+}
+
+/* Two copies: with and without the zone test (the deterministic mode's), which then costs
+ * nothing in the other runs. */
+static I2M_NOINLINE i2m_dt_status_t cavity_search_zoned(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid)
+{
+  return cavity_search_in(ctx, p, gid, true);
+}
+
+static I2M_NOINLINE i2m_dt_status_t cavity_search_free(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid)
+{
+  return cavity_search_in(ctx, p, gid, false);
+}
+
+static i2m_dt_status_t cavity_search(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid)
+{
+  return ctx->zone ? cavity_search_zoned(ctx, p, gid) : cavity_search_free(ctx, p, gid);
 }
 
 /* ---- refill ---- */

@@ -110,6 +110,20 @@ static void run_free(run_t *r)
   i2m_image_destroy(&r->img);
 }
 
+/* The number of processes an MPI launcher (mpirun, mpiexec, srun with PMI) started, from
+ * the variables it sets (1 when none).  The distributed level is not built yet: rather than
+ * N processes each meshing the whole image into the same file, each of them stops. */
+static long launched_processes(void)
+{
+  static const char *const vars[] = {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"};
+  for (size_t k = 0; k < sizeof vars / sizeof *vars; k++) {
+    const char *v = getenv(vars[k]);
+    long n = v ? strtol(v, NULL, 10) : 0;
+    if (n > 1) return n;
+  }
+  return 1;
+}
+
 int main(int argc, char **argv)
 {
   run_t r;
@@ -127,6 +141,14 @@ int main(int argc, char **argv)
   if (r.opt.version) {
     printf("i2m 0.1\n");
     return 0;
+  }
+  long nproc = launched_processes();
+  if (nproc > 1) {
+    fprintf(stderr,
+            "i2m: started as one of %ld MPI processes, but the MPI level is not implemented yet: run one process "
+            "(it uses every core of the node; see --threads)\n",
+            nproc);
+    return 2;
   }
   i2m_log_set_level(r.opt.quiet ? I2M_LOG_QUIET : r.opt.verbose ? I2M_LOG_DEBUG : I2M_LOG_INFO);
   i2m_err_t err = run_mesher(&r);

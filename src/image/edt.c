@@ -18,6 +18,16 @@ static bool is_boundary(const i2m_image_t *img, int64_t i, int64_t j, int64_t k)
          i2m_image_label_voxel(img, i, j, k - 1) != l || i2m_image_label_voxel(img, i, j, k + 1) != l;
 }
 
+/* is_boundary for a voxel off the image's border (image index idx; s1, s2 the strides of
+ * axes 1 and 2): its six neighbours without bounds checks. */
+static inline bool is_boundary_inner(const i2m_image_t *img, int64_t idx, int64_t s1, int64_t s2)
+{
+  int l = i2m_image_index(img, idx);
+  return i2m_image_index(img, idx - 1) != l || i2m_image_index(img, idx + 1) != l ||
+         i2m_image_index(img, idx - s1) != l || i2m_image_index(img, idx + s1) != l ||
+         i2m_image_index(img, idx - s2) != l || i2m_image_index(img, idx + s2) != l;
+}
+
 /* Box K: boundary voxels lie within one voxel of the foreground, so the foreground's
  * bounding box grown by one voxel (clamped to the image) holds them all. */
 static void boundary_box(const i2m_image_t *img, int64_t lo[3], int64_t hi[3])
@@ -264,13 +274,17 @@ i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
   int64_t nb = 0;
   I2M_OMP(omp parallel for reduction(+ : nb) schedule(static))
   for (int64_t k = 0; k < e->m[2]; k++)
-    for (int64_t j = 0; j < e->m[1]; j++)
+    for (int64_t j = 0; j < e->m[1]; j++) {
+      const int64_t gj = e->lo[1] + j, gk = e->lo[2] + k, s1 = img->n[0], s2 = img->n[0] * img->n[1];
+      const bool inner_row = gj > 0 && gj < img->n[1] - 1 && gk > 0 && gk < img->n[2] - 1;
       for (int64_t i = 0; i < e->m[0]; i++) {
-        int64_t idx = (k * e->m[1] + j) * e->m[0] + i;
-        bool b = is_boundary(img, e->lo[0] + i, e->lo[1] + j, e->lo[2] + k);
+        const int64_t idx = (k * e->m[1] + j) * e->m[0] + i, gi = e->lo[0] + i;
+        const bool b = inner_row && gi > 0 && gi < img->n[0] - 1 ? is_boundary_inner(img, (gk * img->n[1] + gj) * s1 + gi, s1, s2)
+                                                                   : is_boundary(img, gi, gj, gk);
         e->ft[idx] = b ? (int32_t)idx : -1;
         nb += b;
       }
+    }
   e->nboundary = nb;
   edt_pass_rows(e);
   for (int ax = 1; ax < 3 && err == I2M_OK; ax++) err = edt_pass(e, ax);

@@ -60,7 +60,8 @@ static i2m_err_t run_mesher(run_t *r)
   phase_end(r, I2M_PHASE_REFINE);
 
   phase_begin(r, "extraction");
-  r->rep.checksum = i2m_dt_checksum(i2m_refine_dt(r->ref), &r->rep.working_tets);
+  if (o->report) /* (only the JSON report gives it: one pass over the whole triangulation) */
+    r->rep.checksum = i2m_dt_checksum(i2m_refine_dt(r->ref), &r->rep.working_tets);
   I2M_CALL(i2m_refine_extract(r->ref, &r->mesh));
   i2m_refine_release_mesh(r->ref);
   phase_end(r, I2M_PHASE_EXTRACT);

@@ -2,6 +2,8 @@
  * perturbation, vertex hints) and an order-independent checksum of the tetrahedralization. */
 #include "dt_impl.h"
 
+#include <stdlib.h>
+
 static i2m_err_t check_adjacency(const i2m_dt_t *dt, uint32_t t)
 {
   const uint32_t *v = dt->tv + 4 * (size_t)t;
@@ -75,13 +77,21 @@ static uint64_t mix64(uint64_t z)
 
 uint64_t i2m_dt_checksum(const i2m_dt_t *dt, int64_t *ntets)
 {
-  uint64_t sum = 0;
+  uint64_t sum = 0; /* a sum modulo 2^64: the same in any order, on any number of threads */
   int64_t n = 0;
-  uint32_t nt = i2m_dt_ntets_slots(dt);
-  for (uint32_t t = 0; t < nt; t++) {
-    if (!i2m_dt_alive(dt, t)) continue;
+  const int64_t nt = i2m_dt_ntets_slots(dt), nv = i2m_dt_nverts_slots(dt);
+  /* the ids side by side (8 bytes a vertex instead of 32): the random reads hit the cache more */
+  i2m_gidx_t *gid = malloc((size_t)(nv > 0 ? nv : 1) * sizeof *gid);
+  if (gid) {
+    I2M_OMP(omp parallel for schedule(static))
+    for (int64_t v = 0; v < nv; v++) gid[v] = i2m_dt_gid(dt, (uint32_t)v);
+  }
+  I2M_OMP(omp parallel for reduction(+ : sum, n) schedule(static))
+  for (int64_t t = 0; t < nt; t++) {
+    if (!i2m_dt_alive(dt, (uint32_t)t)) continue;
     i2m_gidx_t g[4];
-    for (int i = 0; i < 4; i++) g[i] = i2m_dt_gid(dt, dt->tv[4 * (size_t)t + i]);
+    const uint32_t *tv = dt->tv + 4 * (size_t)t;
+    for (int i = 0; i < 4; i++) g[i] = gid ? gid[tv[i]] : i2m_dt_gid(dt, tv[i]);
     for (int i = 1; i < 4; i++) /* insertion sort of four ids */
       for (int j = i; j > 0 && g[j - 1] > g[j]; j--) {
         i2m_gidx_t x = g[j];
@@ -93,6 +103,7 @@ uint64_t i2m_dt_checksum(const i2m_dt_t *dt, int64_t *ntets)
     sum += h;
     n++;
   }
+  free(gid);
   if (ntets) *ntets = n;
   return sum;
 }

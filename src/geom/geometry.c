@@ -189,7 +189,7 @@ int i2m_tri_circumcenter(const double a[3], const double b[3], const double c[3]
 double i2m_tri_min_angle(const double a[3], const double b[3], const double c[3])
 {
   const double *p[3] = {a, b, c};
-  double m = 180.0;
+  double cmax = -1.0; /* the smallest angle has the largest cosine: one acos */
   for (int i = 0; i < 3; i++) {
     double e1[3], e2[3];
     sub3(p[(i + 1) % 3], p[i], e1);
@@ -197,10 +197,7 @@ double i2m_tri_min_angle(const double a[3], const double b[3], const double c[3]
     double l = sqrt(dot3(e1, e1) * dot3(e2, e2));
     if (!(l > 0)) return 0.0;
     double cs = dot3(e1, e2) / l;
-    if (cs > 1) cs = 1;
-    if (cs < -1) cs = -1;
-    double ang = acos(cs) * (180.0 / I2M_PI);
-    if (ang < m) m = ang;
+    if (cs > cmax) cmax = cs;
   }
-  return m;
+  return acos(cmax > 1 ? 1 : cmax) * (180.0 / I2M_PI);
 }

@@ -106,22 +106,60 @@ static i2m_err_t junction_vertices(const i2m_tetmesh_t *m, uint8_t **junction)
   return I2M_OK;
 }
 
+/* The smallest planar angle of interface triangle f. */
+static double facet_angle(const i2m_tetmesh_t *m, int64_t f)
+{
+  const int32_t *v = m->tri + 3 * f;
+  return i2m_tri_min_angle(m->xyz + 3 * (size_t)v[0], m->xyz + 3 * (size_t)v[1], m->xyz + 3 * (size_t)v[2]);
+}
+
 static i2m_err_t facet_figures(const i2m_tetmesh_t *m, i2m_quality_t *q)
 {
-  uint8_t *junction = NULL;
-  I2M_CALL(junction_vertices(m, &junction));
-  q->min_facet_angle = 180;
+  const double bound = q->facet_bound * (1 - 1e-9);
+  double min_angle = 180;
+  int64_t below = 0, below_junction = 0;
+  I2M_OMP(omp parallel for reduction(min : min_angle) reduction(+ : below) schedule(static))
   for (int64_t f = 0; f < m->ntri; f++) {
-    const int32_t *v = m->tri + 3 * f;
-    double ang = i2m_tri_min_angle(m->xyz + 3 * (size_t)v[0], m->xyz + 3 * (size_t)v[1], m->xyz + 3 * (size_t)v[2]);
-    q->min_facet_angle = fmin(q->min_facet_angle, ang);
-    if (ang < q->facet_bound * (1 - 1e-9)) {
-      q->n_facet_below++;
-      q->n_facet_below_junction += junction[v[0]] || junction[v[1]] || junction[v[2]];
-    }
+    const double ang = facet_angle(m, f);
+    min_angle = ang < min_angle ? ang : min_angle;
+    below += ang < bound;
   }
-  i2m_free(&junction);
+  if (below > 0) { /* which of them touch a junction (rare: the target is none below) */
+    uint8_t *junction = NULL;
+    I2M_CALL(junction_vertices(m, &junction));
+    I2M_OMP(omp parallel for reduction(+ : below_junction) schedule(static))
+    for (int64_t f = 0; f < m->ntri; f++) {
+      const int32_t *v = m->tri + 3 * f;
+      if (facet_angle(m, f) < bound) below_junction += junction[v[0]] || junction[v[1]] || junction[v[2]];
+    }
+    i2m_free(&junction);
+  }
+  q->min_facet_angle = min_angle;
+  q->n_facet_below = below;
+  q->n_facet_below_junction = below_junction;
   return I2M_OK;
+}
+
+#define LABEL_CHUNKS 64
+#define LABEL_CHUNK_MAX_LABELS 1024
+
+/* Volume and number of the tets [t0, t1) per label (q's labels, by value). */
+static void label_sums(const i2m_tetmesh_t *m, const i2m_quality_t *q, int64_t t0, int64_t t1, double *vol,
+                       int64_t *cnt)
+{
+  for (int64_t t = t0; t < t1; t++) {
+    int lo = 0, hi = q->nlabels - 1; /* label values are sorted: binary search */
+    while (lo < hi) {
+      int mid = (lo + hi) / 2;
+      if (q->labels[mid].value < m->tet_label[t]) lo = mid + 1;
+      else hi = mid;
+    }
+    if (q->labels[lo].value != m->tet_label[t]) continue;
+    const int32_t *v = m->tet + 4 * t;
+    vol[lo] += (1.0 / 6.0) * fabs(i2m_tet_signed_volume6(m->xyz + 3 * (size_t)v[0], m->xyz + 3 * (size_t)v[1],
+                                                         m->xyz + 3 * (size_t)v[2], m->xyz + 3 * (size_t)v[3]));
+    cnt[lo]++;
+  }
 }
 
 static i2m_err_t label_figures(const i2m_tetmesh_t *m, const i2m_image_t *img, i2m_quality_t *q)
@@ -133,22 +171,28 @@ static i2m_err_t label_figures(const i2m_tetmesh_t *m, const i2m_image_t *img, i
     q->labels[l - 1].value = img->label_value[l];
     q->labels[l - 1].voxel_volume = (double)img->label_count[l] * vox;
   }
-  for (int64_t t = 0; t < m->nt; t++) {
-    int lo = 0, hi = q->nlabels - 1; /* label values are sorted: binary search */
-    while (lo < hi) {
-      int mid = (lo + hi) / 2;
-      if (q->labels[mid].value < m->tet_label[t]) lo = mid + 1;
-      else hi = mid;
-    }
-    if (q->nlabels == 0 || q->labels[lo].value != m->tet_label[t]) continue;
-    const int32_t *v = m->tet + 4 * t;
-    double vol = (1.0 / 6.0) *
-                 fabs(i2m_tet_signed_volume6(m->xyz + 3 * (size_t)v[0], m->xyz + 3 * (size_t)v[1],
-                                             m->xyz + 3 * (size_t)v[2], m->xyz + 3 * (size_t)v[3]));
-    q->labels[lo].ntets++;
-    q->labels[lo].volume += vol;
+  if (q->nlabels == 0) return I2M_OK;
+  /* fixed chunks, each summed in order, then the chunks in order: the same volumes on any
+   * number of threads (one chunk when there are too many labels for per-chunk sums) */
+  const int nchunks = q->nlabels <= LABEL_CHUNK_MAX_LABELS ? LABEL_CHUNKS : 1;
+  double *vol = NULL;
+  int64_t *cnt = NULL;
+  i2m_err_t err = i2m_calloc((size_t)nchunks * (size_t)q->nlabels, sizeof *vol, &vol);
+  if (err == I2M_OK) err = i2m_calloc((size_t)nchunks * (size_t)q->nlabels, sizeof *cnt, &cnt);
+  if (err == I2M_OK) {
+    I2M_OMP(omp parallel for schedule(dynamic, 1))
+    for (int c = 0; c < nchunks; c++)
+      label_sums(m, q, m->nt * c / nchunks, m->nt * (c + 1) / nchunks, vol + (size_t)c * (size_t)q->nlabels,
+                 cnt + (size_t)c * (size_t)q->nlabels);
+    for (int c = 0; c < nchunks; c++)
+      for (int l = 0; l < q->nlabels; l++) {
+        q->labels[l].volume += vol[(size_t)c * (size_t)q->nlabels + (size_t)l];
+        q->labels[l].ntets += cnt[(size_t)c * (size_t)q->nlabels + (size_t)l];
+      }
   }
-  return I2M_OK;
+  i2m_free(&vol);
+  i2m_free(&cnt);
+  return err;
 }
 
 i2m_err_t i2m_quality_compute(const i2m_tetmesh_t *m, const i2m_image_t *img, double ratio_bound,

@@ -166,6 +166,48 @@ static void test_deterministic(void)
   CU_ASSERT_EQUAL(h[0], h[1]);
 }
 
+/* The report's figures of a hand-made mesh: two tets of labels 5 and 9 on a 2x2x2 image;
+ * interface triangles, one thin (below 30 degrees) whose vertex 0 is met by three label
+ * pairs' triangles (a junction), one thin away from any junction. */
+static void test_quality_figures(void)
+{
+  int64_t n[3] = {2, 2, 2}, v[8] = {5, 5, 5, 5, 9, 9, 9, 0};
+  double sp[3] = {1, 1, 1};
+  i2m_image_t *img = NULL;
+  CU_ASSERT_FATAL(i2m_image_create_from_values(n, sp, NULL, NULL, v, &img) == I2M_OK);
+  i2m_tetmesh_t *m = NULL;
+  CU_ASSERT_FATAL(i2m_tetmesh_create(9, 2, 4, &m) == I2M_OK);
+  const double xyz[9][3] = {{0, 0, 0},  {1, 0, 0},  {0, 1, 0},  {0, 0, 1}, {-1, 0, 0},
+                            {10, 1, 0}, {10, 0, 3}, {20, 0, 3}, {10, 1, 3}};
+  memcpy(m->xyz, xyz, sizeof xyz);
+  const int32_t tets[2][4] = {{0, 1, 2, 3}, {0, 2, 4, 3}}; /* unit corner tet (1/6) and its mirror (1/6) */
+  memcpy(m->tet, tets, sizeof tets);
+  m->tet_label[0] = 5;
+  m->tet_label[1] = 9;
+  const int32_t tris[4][3] = {{0, 2, 3}, {0, 1, 5}, {0, 1, 2}, {6, 7, 8}};
+  const int64_t pairs[4][2] = {{5, 9}, {0, 5}, {0, 9}, {0, 9}};
+  memcpy(m->tri, tris, sizeof tris);
+  memcpy(m->tri_label, pairs, sizeof pairs);
+  i2m_quality_t q;
+  CU_ASSERT_FATAL(i2m_quality_compute(m, img, 2.0, 30.0, &q) == I2M_OK);
+  /* triangles 1 and 3 are thin: 1 touches vertex 0, where pairs (5,9), (0,5), (0,9) meet */
+  CU_ASSERT_EQUAL(q.n_facet_below, 2);
+  CU_ASSERT_EQUAL(q.n_facet_below_junction, 1);
+  CU_ASSERT_DOUBLE_EQUAL(q.min_facet_angle, atan2(1.0, 91.0) * 180.0 / I2M_PI, 1e-9); /* triangle 1 at vertex 5 */
+  CU_ASSERT_EQUAL(q.n_ratio_above, 0);
+  CU_ASSERT_DOUBLE_EQUAL(q.min_dihedral, acos(1.0 / sqrt(3.0)) * 180.0 / I2M_PI, 1e-9);
+  CU_ASSERT_EQUAL_FATAL(q.nlabels, 2);
+  for (int l = 0; l < 2; l++) {
+    CU_ASSERT_EQUAL(q.labels[l].value, l == 0 ? 5 : 9);
+    CU_ASSERT_EQUAL(q.labels[l].ntets, 1);
+    CU_ASSERT_DOUBLE_EQUAL(q.labels[l].volume, 1.0 / 6.0, 1e-12);
+    CU_ASSERT_DOUBLE_EQUAL(q.labels[l].voxel_volume, l == 0 ? 4.0 : 3.0, 1e-12);
+  }
+  i2m_quality_free(&q);
+  i2m_tetmesh_destroy(&m);
+  i2m_image_destroy(&img);
+}
+
 static void test_bad_parameters(void)
 {
   double sp[3] = {1, 1, 1};
@@ -204,5 +246,6 @@ static const test_case_t cases[] = {
     {"touching balls, ratio 2.5, size bound", test_touching_balls_and_ratio},
     {"deterministic", test_deterministic},
     {"bad parameters refused", test_bad_parameters},
+    {"quality figures of a hand-made mesh", test_quality_figures},
 };
 TEST_MAIN("refinement", cases)

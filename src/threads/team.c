@@ -404,9 +404,23 @@ static i2m_err_t refine_deterministic(team_t *tm, const i2m_threads_opts_t *o, i
   return err;
 }
 
+/* The number of threads a parallel region will really have when T are asked for: every
+ * phase waits for all of them at its barriers, so the runtime may not hand out fewer
+ * (OMP_DYNAMIC is turned off; OMP_THREAD_LIMIT and a caller's own parallel region without
+ * nesting lower the count, with a warning). */
+static int team_size(int T)
+{
+  omp_set_dynamic(0);
+  int got = T;
+  if (got > omp_get_thread_limit()) got = omp_get_thread_limit();
+  if (omp_in_parallel() && omp_get_active_level() >= omp_get_max_active_levels()) got = 1;
+  if (got < T) i2m_warn("i2m: %d threads asked for, the OpenMP runtime allows %d (OMP_THREAD_LIMIT or nesting): using %d", T, got, got);
+  return got;
+}
+
 i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep)
 {
-  int T = o->threads > 0 ? o->threads : i2m_threads_default();
+  int T = team_size(o->threads > 0 ? o->threads : i2m_threads_default());
   team_t tm;
   memset(rep, 0, sizeof *rep);
   I2M_CHECK(atomic_exchange(&team_busy, 1) == 0, I2M_ERR_UNSUPPORTED,

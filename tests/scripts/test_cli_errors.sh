@@ -65,5 +65,18 @@ for bin in "${I2M_BIN:-bin}/i2m" build/asan/bin/i2m; do
   else
     echo "FAIL OMP_NUM_THREADS=3 did not give 3 worker threads"; fail=1
   fi
+  # a runtime that would give fewer threads than asked for (the team waits for all of them):
+  # as many as allowed, never a hang, in both modes
+  for env in OMP_THREAD_LIMIT=2 OMP_DYNAMIC=true; do
+    for mode in "" --deterministic; do
+      if env $env timeout 60 "$bin" "$B" -o "$TMP/t.vtu" --threads 4 $mode --report "$TMP/t.json" --quiet &&
+         "${I2M_BIN:-bin}/i2m-check" "$TMP/t.vtu" --max-ratio 2 >/dev/null &&
+         { [ $env != OMP_THREAD_LIMIT=2 ] || grep -q '"threads": 2' "$TMP/t.json"; }; then
+        echo "ok   $env, --threads 4 $mode: valid mesh"
+      else
+        echo "FAIL $env, --threads 4 $mode: status $?, or no valid mesh, or not 2 threads under the limit"; fail=1
+      fi
+    done
+  done
 done
 exit $fail

@@ -30,7 +30,6 @@ typedef struct i2m_edt {
   int64_t lo[3], m[3];     /**< voxel box K: voxels lo .. lo+m-1 along each axis */
   double inv_m[3];         /**< 1 / m (index arithmetic without divisions) */
   double inv_spacing[3];   /**< 1 / spacing */
-  double diagonal;         /**< length of a voxel's diagonal (mm) */
   double w2k[3][4];        /**< world -> voxel coordinates relative to K, + 1/2 (voxel v of K
                                 spans [v, v + 1) along each axis): u = w2k[.][0..2] p + w2k[.][3] */
   double k2w[3][4];        /**< the inverse map: voxel coordinates relative to K -> world */
@@ -77,25 +76,20 @@ void i2m_edt_destroy(i2m_edt_t **e);
  *  compute it).  Thread safe. */
 double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2]);
 
-/** The same query with p and z in world coordinates (the mesher's frame). */
-double i2m_edt_closest_world(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2]);
-
 /** What the refinement asks about a point: its label and the closest interface point. */
 typedef struct {
   int label;   /**< label index at the point (i2m_edt_label_at) */
-  bool near;   /**< an interface may lie within the distance asked for (certainly, when d2 is
-                    finite; false only when a lower bound rules it out) */
   double d2;   /**< squared distance to the closest interface point; +inf when it was not
                     asked for, lies farther than the bound, or there is no interface */
   double z[3]; /**< the closest interface point (world), when d2 is finite */
   int pair[2]; /**< label indices on its two sides, smaller first */
 } i2m_edt_probe_t;
 
-/** The label at world point p and whether an interface may lie within sqrt(max_d2) (a cheap
- *  lower bound from the feature transform); with @p closest, also the closest interface point
- *  when it lies within that distance (see i2m_edt_closest; INFINITY asks for it at any
- *  distance).  One change of frame and one voxel lookup.  Thread safe. */
-void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, bool closest, i2m_edt_probe_t *out);
+/** The label at world point p and the closest interface point, unless a cheap lower bound
+ *  (the distance to the voxel the feature transform names) shows it farther than
+ *  sqrt(max_d2) (the same point as i2m_edt_closest; INFINITY asks for it at any distance).
+ *  One change of frame and one voxel lookup.  Thread safe. */
+void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, i2m_edt_probe_t *out);
 
 /** Along the segment a -> b (world coordinates) whose end labels differ, a point where the
  *  label changes from a's, to within @p tol: returns it in x and the labels on its two

@@ -68,6 +68,12 @@ int i2m_tri_circumcenter(const double a[3], const double b[3], const double c[3]
 /** Smallest planar angle of triangle abc in degrees. */
 double i2m_tri_min_angle(const double a[3], const double b[3], const double c[3]);
 
+/** Does the box [box[0..2], box[3..5]] (closed) hold point x?  (NaN: no.) */
+static inline bool i2m_box_holds(const double box[6], const double x[3])
+{
+  return (x[0] >= box[0]) & (x[1] >= box[1]) & (x[2] >= box[2]) & (x[0] <= box[3]) & (x[1] <= box[4]) & (x[2] <= box[5]);
+}
+
 static inline double i2m_dist2(const double a[3], const double b[3])
 {
   double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];

@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "i2m/dt.h"
+#include "i2m/geometry.h"
 #include "i2m/predicates.h"
 
 /* meta helpers */
@@ -60,12 +61,8 @@ static inline bool vlock_take_tet(i2m_dt_ctx_t *ctx, const uint32_t *v4)
   return vlock_take(ctx, v4[0]) && vlock_take(ctx, v4[1]) && vlock_take(ctx, v4[2]) && vlock_take(ctx, v4[3]);
 }
 
-/* Zone mode: does vertex v (or point x) lie in the context's zone? */
-static inline bool zone_holds_point(const double *z, const double *x)
-{
-  return (x[0] >= z[0]) & (x[1] >= z[1]) & (x[2] >= z[2]) & (x[0] <= z[3]) & (x[1] <= z[4]) & (x[2] <= z[5]);
-}
-static inline bool zone_holds(const i2m_dt_ctx_t *ctx, uint32_t v) { return zone_holds_point(ctx->zone, i2m_dt_xyz(ctx->dt, v)); }
+/* Zone mode: does vertex v lie in the context's zone? */
+static inline bool zone_holds(const i2m_dt_ctx_t *ctx, uint32_t v) { return i2m_box_holds(ctx->zone, i2m_dt_xyz(ctx->dt, v)); }
 
 /* May the operation touch vertex v: its lock (threaded runs), or its place in the zone
  * (deterministic mode)?  False means roll back; ctx->conflict_owner says who holds it. */

@@ -87,19 +87,25 @@ static inline uint32_t local_of(const i2m_dt_t *dt, uint32_t v)
   return atomic_load_explicit(&dt->vlock[v], memory_order_relaxed) >> I2M_DT_OWNER_BITS;
 }
 
-/* The exact conflict test (with the perturbation) of the tet whose vertices have local
- * numbers l[] (positively oriented), for what the cavity's bound could not certify. */
-static I2M_NOINLINE int conflict_exact(const i2m_dt_ctx_t *ctx, const uint32_t l[4], const double *p,
-                                       i2m_gidx_t gid)
+/* The conflict test decided past the cavity's bound: the filter on the rows r of vertices v
+ * (the tet's, positively oriented), then exact arithmetic with the perturbation. */
+static I2M_NOINLINE int conflict_decide(const i2m_dt_ctx_t *ctx, const double *const r[4], const uint32_t v[4],
+                                        const double *p, i2m_gidx_t gid)
 {
-  const double *R = ctx->rows;
-  int s = i2m_insphere_filter_rows(R + 4 * l[0], R + 4 * l[1], R + 4 * l[2], R + 4 * l[3]);
+  int s = i2m_insphere_filter_rows(r[0], r[1], r[2], r[3]);
   if (s != 0) return s;
   const i2m_dt_t *dt = ctx->dt;
-  const uint32_t *H = ctx->held;
-  return i2m_insphere_sos_exact(i2m_dt_xyz(dt, H[l[0]]), i2m_dt_xyz(dt, H[l[1]]), i2m_dt_xyz(dt, H[l[2]]),
-                                i2m_dt_xyz(dt, H[l[3]]), p, i2m_dt_gid(dt, H[l[0]]), i2m_dt_gid(dt, H[l[1]]),
-                                i2m_dt_gid(dt, H[l[2]]), i2m_dt_gid(dt, H[l[3]]), gid);
+  return i2m_insphere_sos_exact(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), p,
+                                i2m_dt_gid(dt, v[0]), i2m_dt_gid(dt, v[1]), i2m_dt_gid(dt, v[2]), i2m_dt_gid(dt, v[3]), gid);
+}
+
+/* The same for the tet whose vertices have local numbers l[]. */
+static I2M_NOINLINE int conflict_exact(const i2m_dt_ctx_t *ctx, const uint32_t l[4], const double *p, i2m_gidx_t gid)
+{
+  const double *R = ctx->rows;
+  const double *const r[4] = {R + 4 * l[0], R + 4 * l[1], R + 4 * l[2], R + 4 * l[3]};
+  const uint32_t v[4] = {ctx->held[l[0]], ctx->held[l[1]], ctx->held[l[2]], ctx->held[l[3]]};
+  return conflict_decide(ctx, r, v, p, gid);
 }
 
 /* Conflict test of a positive tet given by its local numbers: > 0 when p is in its ball. */
@@ -138,13 +144,9 @@ static I2M_NOINLINE int conflict_across_unnumbered(i2m_dt_ctx_t *ctx, const uint
   r[i] = row;
   const double det = i2m_insphere_det_rows(r[0], r[1], r[2], r[3]);
   if (fabs(det) > ctx->isp_bound) return (det > 0.0) - (det < 0.0);
-  int s = i2m_insphere_filter_rows(r[0], r[1], r[2], r[3]);
-  if (s != 0) return s;
-  const i2m_dt_t *dt = ctx->dt;
   uint32_t v[4] = {ctx->held[cl[0]], ctx->held[cl[1]], ctx->held[cl[2]], ctx->held[cl[3]]};
   v[i] = w;
-  return i2m_insphere_sos_exact(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), p,
-                                i2m_dt_gid(dt, v[0]), i2m_dt_gid(dt, v[1]), i2m_dt_gid(dt, v[2]), i2m_dt_gid(dt, v[3]), gid);
+  return conflict_decide(ctx, r, v, p, gid);
 }
 
 static inline bool row_is_origin(const i2m_dt_ctx_t *ctx, uint32_t l)
@@ -442,7 +444,7 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
 {
   I2M_CHECK_ABORT(ctx->locking || ctx->nheld == 0, "i2m_dt_insert: the previous operation's vertices are still held");
   ctx->ncav = ctx->nbnd = ctx->nnew = 0;
-  if (ctx->zone && !zone_holds_point(ctx->zone, p)) {
+  if (ctx->zone && !i2m_box_holds(ctx->zone, p)) {
     ctx->conflict_owner = 0;
     return cavity_abandon(ctx, I2M_DT_ROLLBACK);
   }

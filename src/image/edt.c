@@ -252,9 +252,7 @@ i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
     e->m[a] = hi[a] - e->lo[a] + 1;
     e->inv_m[a] = e->m[a] > 0 ? 1.0 / (double)e->m[a] : 0.0;
     e->inv_spacing[a] = 1.0 / img->spacing[a];
-    e->diagonal += img->spacing[a] * img->spacing[a];
   }
-  e->diagonal = sqrt(e->diagonal);
   set_voxel_maps(e);
   int64_t nbox = e->m[0] * e->m[1] * e->m[2];
   if (nbox <= 0) { /* no foreground at all */
@@ -301,213 +299,78 @@ void i2m_edt_destroy(i2m_edt_t **e)
   i2m_free(e);
 }
 
-/* Closest point to p on the faces between boundary voxel b (image index) and its
- * differently-labelled 6-neighbours: the general path, through the label oracle. */
-static double closest_on_voxel_faces(const i2m_edt_t *e, const int64_t b[3], const double p[3], double z[3],
-                                     int pair[2])
-{
-  const i2m_image_t *img = e->img;
-  const int lb = i2m_edt_label_voxel(e, b[0], b[1], b[2]);
-  double best = INFINITY, c[3], h[3], q0[3];
-  for (int a = 0; a < 3; a++) {
-    c[a] = (double)b[a] * img->spacing[a];
-    h[a] = 0.5 * img->spacing[a];
-    double lo = c[a] - h[a], hi = c[a] + h[a];
-    q0[a] = p[a] < lo ? lo : p[a] > hi ? hi : p[a]; /* p clamped into the voxel */
-  }
-  for (int ax = 0; ax < 3; ax++)
-    for (int dir = -1; dir <= 1; dir += 2) {
-      int64_t n[3] = {b[0], b[1], b[2]};
-      n[ax] += dir;
-      int ln = i2m_edt_label_voxel(e, n[0], n[1], n[2]);
-      if (ln == lb) continue;
-      double q[3] = {q0[0], q0[1], q0[2]};
-      q[ax] = c[ax] + dir * h[ax]; /* the face plane; the other coordinates clamped into it */
-      double d2 = i2m_sq(p[0] - q[0]) + i2m_sq(p[1] - q[1]) + i2m_sq(p[2] - q[2]);
-      if (d2 < best) {
-        best = d2;
-        memcpy(z, q, sizeof q);
-        if (pair) {
-          pair[0] = lb < ln ? lb : ln;
-          pair[1] = lb < ln ? ln : lb;
-        }
-      }
-    }
-  return best;
-}
-
-/* The same with labels packed in the words: boundary voxel f (box-linear index, box
- * coordinates fb) and its neighbours are read from the transform itself, one word each
- * (outside K every label is 0). */
-static double closest_on_faces_packed(const i2m_edt_t *e, uint32_t f, const uint32_t fb[3], const double p[3],
-                                      double z[3], int pair[2])
-{
-  const i2m_image_t *img = e->img;
-  const int64_t stride[3] = {1, e->m[0], e->m[0] * e->m[1]};
-  const int lb = (int)((uint32_t)e->ft[f] >> e->label_shift);
-  double best = INFINITY, c[3], q0[3];
-  for (int a = 0; a < 3; a++) {
-    c[a] = (double)(e->lo[a] + fb[a]) * img->spacing[a];
-    double h = 0.5 * img->spacing[a], lo = c[a] - h, hi = c[a] + h;
-    q0[a] = p[a] < lo ? lo : p[a] > hi ? hi : p[a];
-  }
-  for (int ax = 0; ax < 3; ax++)
-    for (int dir = -1; dir <= 1; dir += 2) {
-      int64_t nb = (int64_t)fb[ax] + dir;
-      int ln = nb < 0 || nb >= e->m[ax] ? 0 : (int)((uint32_t)e->ft[(int64_t)f + dir * stride[ax]] >> e->label_shift);
-      if (ln == lb) continue;
-      double q[3] = {q0[0], q0[1], q0[2]};
-      q[ax] = c[ax] + dir * 0.5 * img->spacing[ax];
-      double d2 = i2m_sq(p[0] - q[0]) + i2m_sq(p[1] - q[1]) + i2m_sq(p[2] - q[2]);
-      if (d2 < best) {
-        best = d2;
-        memcpy(z, q, sizeof q);
-        pair[0] = lb < ln ? lb : ln;
-        pair[1] = lb < ln ? ln : lb;
-      }
-    }
-  return best;
-}
-
-/* Where grid-frame point p falls: u[a] = p / spacing + 1/2 (its voxel is floor(u), the
- * mesher's one voxel rule), and c, the voxel of its projection on the box K; false when p
- * lies outside K. */
-static inline bool edt_locate(const i2m_edt_t *e, const double p[3], double u[3], int64_t c[3])
-{
-  bool inside = true;
-  for (int a = 0; a < 3; a++) { /* no floor(): a call */
-    u[a] = p[a] * e->inv_spacing[a] + 0.5;
-    int64_t lo = e->lo[a], hi = e->lo[a] + e->m[a] - 1;
-    if (!(u[a] >= (double)lo)) {
-      c[a] = lo;
-      inside = false;
-    } else if (u[a] >= (double)(hi + 1)) {
-      c[a] = hi;
-      inside = false;
-    } else {
-      c[a] = (int64_t)u[a];
-    }
-  }
-  return inside;
-}
-
-/* Can an interface point lie within sqrt(max_d2) of p?  f is the feature of voxel c (p's
- * voxel, or for p outside K the voxel of its projection on K), fb its box coordinates.  For p
- * inside K, b is the boundary voxel nearest to the centre of c, so every interface point is
- * at least |centre(c) - centre(b)| - one voxel diagonal away; for p outside K, at least its
- * distance to K (which holds every interface). */
-static bool maybe_within(const i2m_edt_t *e, const double p[3], const int64_t c[3], bool inside, const uint32_t fb[3],
-                         double max_d2)
-{
-  if (!isfinite(max_d2)) return true;
-  const double *s = e->img->spacing;
-  if (!inside) {
-    double dk2 = 0;
-    for (int a = 0; a < 3; a++) {
-      double lo = ((double)e->lo[a] - 0.5) * s[a], hi = ((double)(e->lo[a] + e->m[a]) - 0.5) * s[a];
-      double d = p[a] < lo ? lo - p[a] : p[a] > hi ? p[a] - hi : 0.0;
-      dk2 += d * d;
-    }
-    return dk2 <= max_d2;
-  }
-  double dc2 = 0;
-  for (int a = 0; a < 3; a++) dc2 += i2m_sq((double)(c[a] - e->lo[a] - fb[a]) * s[a]);
-  const double reach = e->diagonal + sqrt(max_d2);
-  return dc2 <= reach * reach;
-}
-
-static inline uint32_t feature_of_voxel(const i2m_edt_t *e, const int64_t c[3])
-{
-  return i2m_edt_feature(e, ((c[2] - e->lo[2]) * e->m[1] + (c[1] - e->lo[1])) * e->m[0] + (c[0] - e->lo[0]));
-}
-
-/* The closest point to p on the faces of boundary voxel f (box coordinates fb). */
-static double closest_on_feature(const i2m_edt_t *e, uint32_t f, const uint32_t fb[3], const double p[3], double z[3],
-                                 int pair[2])
-{
-  if (e->labels_packed) return closest_on_faces_packed(e, f, fb, p, z, pair);
-  const int64_t b[3] = {e->lo[0] + fb[0], e->lo[1] + fb[1], e->lo[2] + fb[2]};
-  return closest_on_voxel_faces(e, b, p, z, pair);
-}
-
-double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2])
-{
-  int tmp[2];
-  if (!pair) pair = tmp;
-  if (e->nboundary == 0) {
-    memcpy(z, p, 3 * sizeof *z);
-    pair[0] = pair[1] = 0;
-    return INFINITY;
-  }
-  double u[3];
-  int64_t c[3];
-  uint32_t fb[3];
-  bool inside = edt_locate(e, p, u, c);
-  const uint32_t f = feature_of_voxel(e, c);
-  box_coords(e, f, fb);
-  if (inside && !maybe_within(e, p, c, inside, fb, max_d2)) return INFINITY;
-  return closest_on_feature(e, f, fb, p, z, pair);
-}
-
-double i2m_edt_closest_world(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2])
-{
-  double g[3], zg[3];
-  i2m_image_world_to_grid(e->img, p, g);
-  double d2 = i2m_edt_closest(e, g, max_d2, zg, pair);
-  if (isfinite(d2)) {
-    i2m_image_grid_to_world(e->img, zg, z);
-    d2 = i2m_dist2(p, z);
-  } else {
-    memcpy(z, p, 3 * sizeof *z);
-  }
-  return d2;
-}
-
-int i2m_edt_label_at(const i2m_edt_t *e, const double g[3])
-{
-  double u[3];
-  int64_t c[3];
-  const int64_t *n = e->img->n;
-  for (int a = 0; a < 3; a++)
-    if (!(g[a] * e->inv_spacing[a] + 0.5 >= 0.0)) return 0; /* also NaN */
-  bool inside = edt_locate(e, g, u, c);
-  int64_t v[3] = {(int64_t)u[0], (int64_t)u[1], (int64_t)u[2]};
-  if (v[0] >= n[0] || v[1] >= n[1] || v[2] >= n[2]) return 0; /* outside the image */
-  if (!e->labels_packed) return i2m_image_label_voxel(e->img, v[0], v[1], v[2]);
-  if (!inside) return 0; /* outside K: background */
-  return (int)((uint32_t)e->ft[((c[2] - e->lo[2]) * e->m[1] + (c[1] - e->lo[1])) * e->m[0] + (c[0] - e->lo[0])] >>
-               e->label_shift);
-}
+/* ---- queries, in voxel coordinates relative to K: u = grid / spacing + 1/2 - lo, so that
+ * voxel v of K spans [v, v + 1) along each axis (the mesher's one voxel rule).  Outside K
+ * every label is 0 (K holds the whole foreground). ---- */
 
 static inline void affine3(const double A[3][4], const double x[3], double y[3])
 {
   for (int k = 0; k < 3; k++) y[k] = A[k][0] * x[0] + A[k][1] * x[1] + A[k][2] * x[2] + A[k][3];
 }
 
-int i2m_edt_label_at_world(const i2m_edt_t *e, const double w[3])
+static inline void grid_to_k(const i2m_edt_t *e, const double g[3], double u[3])
 {
-  if (!e->labels_packed || e->nboundary == 0) {
-    double g[3];
-    i2m_image_world_to_grid(e->img, w, g);
-    return i2m_edt_label_at(e, g);
-  }
-  double u[3];
-  affine3(e->w2k, w, u);
-  for (int k = 0; k < 3; k++)
-    if (!(u[k] >= 0.0 && u[k] < (double)e->m[k])) return 0; /* outside K (or NaN): background */
-  const int64_t c[3] = {(int64_t)u[0], (int64_t)u[1], (int64_t)u[2]};
-  return (int)((uint32_t)e->ft[(c[2] * e->m[1] + c[1]) * e->m[0] + c[0]] >> e->label_shift);
+  for (int a = 0; a < 3; a++) u[a] = g[a] * e->inv_spacing[a] + 0.5 - (double)e->lo[a];
 }
 
-/* The probe when labels are packed (nearly always), in voxel coordinates relative to K: one
- * affine map in, the label and the feature from one word, the neighbours' labels from the
- * words next to the feature's, one affine map out. */
-static void probe_packed(const i2m_edt_t *e, const double p[3], double max_d2, bool closest, i2m_edt_probe_t *out)
+static inline void k_to_grid(const i2m_edt_t *e, const double u[3], double g[3])
+{
+  for (int a = 0; a < 3; a++) g[a] = (u[a] + (double)e->lo[a] - 0.5) * e->img->spacing[a];
+}
+
+static int label_k(const i2m_edt_t *e, const double u[3])
+{
+  for (int a = 0; a < 3; a++)
+    if (!(u[a] >= 0.0 && u[a] < (double)e->m[a])) return 0; /* outside K (or NaN): background */
+  return i2m_edt_label_voxel(e, e->lo[0] + (int64_t)u[0], e->lo[1] + (int64_t)u[1], e->lo[2] + (int64_t)u[2]);
+}
+
+int i2m_edt_label_at(const i2m_edt_t *e, const double g[3])
+{
+  double u[3];
+  grid_to_k(e, g, u);
+  return label_k(e, u);
+}
+
+int i2m_edt_label_at_world(const i2m_edt_t *e, const double w[3])
+{
+  double u[3];
+  affine3(e->w2k, w, u);
+  return label_k(e, u);
+}
+
+/* Label of box voxel idx (box-linear index, box coordinates c): its word's high bits when
+ * the labels are packed (nearly always), else the image's voxel. */
+static inline int box_label(const i2m_edt_t *e, int64_t idx, const int64_t c[3], bool packed)
+{
+  if (packed) return (int)((uint32_t)e->ft[idx] >> e->label_shift);
+  return i2m_image_label_voxel(e->img, e->lo[0] + c[0], e->lo[1] + c[1], e->lo[2] + c[2]);
+}
+
+/* Label of the neighbour of box voxel f (box coordinates fb) one step along axis ax in
+ * direction dir: from the next word when the labels are packed (nearly always). */
+static inline int neighbour_label(const i2m_edt_t *e, uint32_t f, const uint32_t fb[3], int ax, int dir,
+                                  const int64_t stride[3], bool packed)
+{
+  const int64_t nb = (int64_t)fb[ax] + dir;
+  if (nb < 0 || nb >= e->m[ax]) return 0;
+  if (packed) return (int)((uint32_t)e->ft[(int64_t)f + dir * stride[ax]] >> e->label_shift);
+  int64_t c[3] = {e->lo[0] + fb[0], e->lo[1] + fb[1], e->lo[2] + fb[2]};
+  c[ax] += dir;
+  return i2m_image_label_voxel(e->img, c[0], c[1], c[2]);
+}
+
+/* The probe at u: its label (when @p label is not NULL) and, unless the feature voxel of its
+ * voxel (of its projection on K, for u outside K) lies farther than sqrt(max_d2), the closest
+ * point zk on the faces between that voxel and its differently labelled neighbours, with the
+ * pair.  Returns INFINITY when zk was not computed.  One word gives the label and the
+ * feature; the distance from u to the feature voxel bounds every face point's from below.
+ * Inlined with packed = e->labels_packed as a constant. */
+static I2M_INLINE double probe_k_in(const i2m_edt_t *e, const double u[3], double max_d2, int *label, double zk[3],
+                                    int pair[2], bool packed)
 {
   const double *s = e->img->spacing;
   const int64_t *m = e->m;
-  double u[3];
-  affine3(e->w2k, p, u);
   int64_t c[3];
   bool inside = true;
   for (int k = 0; k < 3; k++) {
@@ -521,30 +384,24 @@ static void probe_packed(const i2m_edt_t *e, const double p[3], double max_d2, b
       c[k] = (int64_t)u[k];
     }
   }
-  const uint32_t word = (uint32_t)e->ft[(c[2] * m[1] + c[1]) * m[0] + c[0]];
-  out->label = inside ? (int)(word >> e->label_shift) : 0; /* outside K: background */
-  const uint32_t f = word & e->feat_mask;
+  const int64_t idx = (c[2] * m[1] + c[1]) * m[0] + c[0];
+  if (label) *label = inside ? box_label(e, idx, c, packed) : 0;
+  const uint32_t f = i2m_edt_feature(e, idx);
   uint32_t fb[3];
   box_coords(e, f, fb);
-  /* p clamped into the feature voxel: every point of its faces (where the closest point is
-   * sought) is at least that far from p */
-  double q0[3], box2 = 0;
+  double q0[3], box2 = 0; /* u clamped into the feature voxel */
   for (int k = 0; k < 3; k++) {
     double lo = (double)fb[k], hi = lo + 1.0;
     q0[k] = u[k] < lo ? lo : u[k] > hi ? hi : u[k];
     box2 += i2m_sq((u[k] - q0[k]) * s[k]);
   }
-  out->near = !(box2 > max_d2);
-  if (!closest || !out->near) return;
-  /* the closest point on the faces between the feature voxel and its differently labelled
-   * neighbours: p clamped into the voxel, then onto each such face */
-  const int64_t stride[3] = {1, m[0], m[0] * m[1]};
-  const int lb = (int)((uint32_t)e->ft[f] >> e->label_shift);
-  double best = INFINITY, zk[3] = {0, 0, 0};
+  if (!(box2 <= max_d2)) return INFINITY;
+  const int64_t fc[3] = {fb[0], fb[1], fb[2]}, stride[3] = {1, m[0], m[0] * m[1]};
+  const int lb = box_label(e, f, fc, packed);
+  double best = INFINITY;
   for (int ax = 0; ax < 3; ax++)
     for (int dir = -1; dir <= 1; dir += 2) {
-      const int64_t nb = (int64_t)fb[ax] + dir;
-      const int ln = nb < 0 || nb >= m[ax] ? 0 : (int)((uint32_t)e->ft[(int64_t)f + dir * stride[ax]] >> e->label_shift);
+      const int ln = neighbour_label(e, f, fb, ax, dir, stride, packed);
       if (ln == lb) continue;
       double q[3] = {q0[0], q0[1], q0[2]};
       q[ax] = (double)fb[ax] + (dir > 0 ? 1.0 : 0.0);
@@ -552,49 +409,43 @@ static void probe_packed(const i2m_edt_t *e, const double p[3], double max_d2, b
       if (d2 < best) {
         best = d2;
         memcpy(zk, q, sizeof q);
-        out->pair[0] = lb < ln ? lb : ln;
-        out->pair[1] = lb < ln ? ln : lb;
+        pair[0] = lb < ln ? lb : ln;
+        pair[1] = lb < ln ? ln : lb;
       }
     }
-  if (!(best < INFINITY)) return; /* (a feature voxel always has a differing neighbour) */
-  affine3(e->k2w, zk, out->z);
-  out->d2 = i2m_dist2(p, out->z);
+  return best; /* (a feature voxel always has a differing neighbour) */
 }
 
-void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, bool closest, i2m_edt_probe_t *out)
+double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, double z[3], int pair[2])
 {
-  if (e->labels_packed && e->nboundary > 0) {
-    out->d2 = INFINITY;
-    out->pair[0] = out->pair[1] = 0;
-    probe_packed(e, p, max_d2, closest, out);
-    return;
+  int tmp[2];
+  if (!pair) pair = tmp;
+  pair[0] = pair[1] = 0;
+  if (e->nboundary == 0) {
+    memcpy(z, p, 3 * sizeof *z);
+    return INFINITY;
   }
-  double g[3], u[3];
-  int64_t c[3];
-  i2m_image_world_to_grid(e->img, p, g);
+  double u[3], zk[3] = {0, 0, 0};
+  grid_to_k(e, p, u);
+  const double d2 = e->labels_packed ? probe_k_in(e, u, max_d2, NULL, zk, pair, true)
+                                     : probe_k_in(e, u, max_d2, NULL, zk, pair, false);
+  if (!(d2 < INFINITY)) return INFINITY;
+  k_to_grid(e, zk, z);
+  return i2m_dist2(p, z);
+}
+
+void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, i2m_edt_probe_t *out)
+{
+  out->label = 0;
   out->d2 = INFINITY;
-  out->near = false;
   out->pair[0] = out->pair[1] = 0;
-  if (e->m[0] <= 0 || e->nboundary == 0) { /* no interface: one label everywhere in K */
-    out->label = i2m_edt_label_at(e, g);
-    return;
-  }
-  bool inside = edt_locate(e, g, u, c);
-  const int64_t *n = e->img->n;
-  bool in_image = u[0] >= 0.0 && u[1] >= 0.0 && u[2] >= 0.0 && u[0] < (double)n[0] && u[1] < (double)n[1] &&
-                  u[2] < (double)n[2];
-  const int64_t idx = ((c[2] - e->lo[2]) * e->m[1] + (c[1] - e->lo[1])) * e->m[0] + (c[0] - e->lo[0]);
-  if (!in_image) out->label = 0;
-  else if (!e->labels_packed) out->label = i2m_image_label_voxel(e->img, (int64_t)u[0], (int64_t)u[1], (int64_t)u[2]);
-  else out->label = inside ? (int)((uint32_t)e->ft[idx] >> e->label_shift) : 0;
-  const uint32_t f = i2m_edt_feature(e, idx);
-  uint32_t fb[3];
-  box_coords(e, f, fb);
-  out->near = maybe_within(e, g, c, inside, fb, max_d2);
-  if (!closest || !out->near) return;
-  double zg[3];
-  closest_on_feature(e, f, fb, g, zg, out->pair);
-  i2m_image_grid_to_world(e->img, zg, out->z);
+  if (e->nboundary == 0) return; /* no foreground: background everywhere */
+  double u[3], zk[3] = {0, 0, 0};
+  affine3(e->w2k, p, u);
+  const double d2 = e->labels_packed ? probe_k_in(e, u, max_d2, &out->label, zk, out->pair, true) /* (hot: inlined) */
+                                     : probe_k_in(e, u, max_d2, &out->label, zk, out->pair, false);
+  if (!(d2 < INFINITY)) return;
+  affine3(e->k2w, zk, out->z);
   out->d2 = i2m_dist2(p, out->z);
 }
 

@@ -21,7 +21,6 @@ void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t 
 {
   const i2m_dt_t *dt = r->dt;
   g->probe.d2 = INFINITY;
-  g->probe.near = false;
   if (!isfinite(g->r2)) { /* flat */
     g->label = kind == PROBE_NEW ? 0 : tinfo(dt, t)->label;
     return;
@@ -30,7 +29,7 @@ void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t 
    * action is chosen within 2 delta too (R7 keeps track of the free vertices that close to
    * an interface); the probe skips the closest point beyond that reach */
   const double reach2 = kind == PROBE_NEW || g->r2 > r->four_delta2 ? g->r2 : r->four_delta2;
-  if (kind != PROBE_CENTRE) i2m_edt_probe_world(r->edt, g->cc, reach2, true, &g->probe);
+  if (kind != PROBE_CENTRE) i2m_edt_probe_world(r->edt, g->cc, reach2, &g->probe);
   g->label = kind == PROBE_NEW ? g->probe.label : tinfo(dt, t)->label;
 }
 
@@ -222,7 +221,6 @@ int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t sk
   bool r1 = meets && !(skip & (1u << 1)) && !own_vertex_near(r, t, z, patch);
   if (r1 && !tiles_zone_holds(w, z)) return -1;
   if (r1 && !vgrid_has_within(&r->surf, dt, z, r->delta, patch)) {
-
     memcpy(a->p, z, sizeof z);
     a->patch = patch;
     a->kind = I2M_VK_SURFACE;

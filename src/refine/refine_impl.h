@@ -19,8 +19,8 @@ typedef struct {
 static inline tet_info_t *tinfo(const i2m_dt_t *dt, uint32_t t) { return (tet_info_t *)i2m_dt_payload(dt, t); }
 
 /** A tet's circumcentre (world), squared circumradius (INFINITY when flat), label, and the
- *  interface point closest to the centre (probe.d2 is +inf when it lies farther than
- *  max(r, 2 delta), or the tet is flat). */
+ *  interface point closest to the centre (probe.d2 is +inf when it lies beyond the probe's
+ *  reach, see tet_probe, or the tet is flat). */
 typedef struct {
   double cc[3];
   double r2;
@@ -53,7 +53,7 @@ typedef struct {
   int rule;           /* 0: nothing; 1..6: the rule */
   int level;          /* the list it belongs to */
   double dist2;       /* squared distance from p to the nearest interface */
-  double p[3];        /* the point to insert (grid frame) */
+  double p[3];        /* the point to insert (world) */
   uint32_t seed;      /* a tet whose circumball holds p */
   uint8_t kind;       /* I2M_VK_SURFACE or I2M_VK_FREE */
   uint32_t patch;     /* surface points: the interface's label pair (patch_key) */

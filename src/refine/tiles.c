@@ -54,22 +54,17 @@ static int tile_color(const tiling_t *g, uint32_t id)
   return (int)((i & 1) | (j & 1) << 1 | (k & 1) << 2);
 }
 
-static bool in_zone(const double z[6], const double x[3])
-{
-  return x[0] >= z[0] && x[1] >= z[1] && x[2] >= z[2] && x[0] <= z[3] && x[1] <= z[4] && x[2] <= z[5];
-}
-
 static bool zone_fits_tet(const tile_t *tl, const i2m_dt_t *dt, uint32_t t)
 {
   const uint32_t *v = dt->tv + 4 * (size_t)t;
   for (int i = 0; i < 4; i++)
-    if (!in_zone(tl->zone, i2m_dt_xyz(dt, v[i]))) return false;
+    if (!i2m_box_holds(tl->zone, i2m_dt_xyz(dt, v[i]))) return false;
   return true;
 }
 
 bool tiles_zone_holds(const i2m_refine_worker_t *w, const double x[3])
 {
-  return !w->tile || in_zone(w->tile->zone, x);
+  return !w->tile || i2m_box_holds(w->tile->zone, x);
 }
 
 bool tiles_ball_fits(const i2m_refine_worker_t *w, const double c[3], double r2)
@@ -82,10 +77,14 @@ bool tiles_ball_fits(const i2m_refine_worker_t *w, const double c[3], double r2)
   return true;
 }
 
-static bool tile_has_work(const tile_t *tl)
+static size_t tile_work(const tile_t *tl)
 {
-  return tl->npend || tl->q[0].n || tl->q[1].n || tl->q[2].n;
+  size_t n = tl->npend;
+  for (int l = 0; l < NLEVELS; l++) n += tl->q[l].n;
+  return n;
 }
+
+static bool tile_has_work(const tile_t *tl) { return tile_work(tl) != 0; }
 
 /* ---- queues ---- */
 
@@ -207,9 +206,7 @@ static void tiling_free(tiling_t **gp)
   if (!g) return;
   for (uint32_t id = 0; g->tile && id < g->ntiles; id++) {
     for (int l = 0; l < NLEVELS; l++) badlist_free(&g->tile[id].q[l]);
-    i2m_free(&g->tile[id].pend);
-    i2m_free(&g->tile[id].slots.pool);
-    i2m_free(&g->tile[id].slots.vpool);
+    i2m_free(&g->tile[id].pend); /* (the slots went back with i2m_dt_slots_release) */
   }
   i2m_free(&g->tile);
   i2m_free(&g->seq);
@@ -356,8 +353,6 @@ bool i2m_refine_tiling_has_work(const i2m_refine_t *r)
     if (tile_has_work(&g->tile[id])) return true;
   return false;
 }
-
-static size_t tile_work(const tile_t *tl) { return tl->npend + tl->q[0].n + tl->q[1].n + tl->q[2].n; }
 
 static int cmp_u64(const void *x, const void *y)
 {

@@ -118,6 +118,32 @@ static inline int i2m_image_label_voxel(const i2m_image_t *img, int64_t i, int64
   return i2m_image_index(img, (k * img->n[1] + j) * img->n[0] + i);
 }
 
+/** 6-connected components of the labels of a block of voxels (label 0 included), as runs
+ *  along i: run r has label lab[r], starts at x0[r] (relative to the block) in its row
+ *  (rows (j, k) in order, row[] their first runs) and belongs to the component whose root run
+ *  is par[r]; size[root] counts its voxels. */
+typedef struct {
+  int64_t lo[3], n[3]; /**< the block: voxels lo .. lo + n - 1 */
+  int64_t *row;        /**< owned: [n1 n2 + 1] */
+  int32_t *x0, *len;   /**< owned: [nruns] */
+  uint16_t *lab;       /**< owned: [nruns] label index */
+  int64_t *par;        /**< owned: [nruns] root run of the component */
+  int64_t *size;       /**< owned: [nruns] voxels of the component (at roots) */
+  int64_t nruns;
+} i2m_components_t;
+
+/** Label index of voxel (i,j,k) in an image or transform (ctx). */
+typedef int (*i2m_label_fn)(const void *ctx, int64_t i, int64_t j, int64_t k);
+
+/** Components of the block lo .. lo + n - 1, labels read through @p label. */
+i2m_err_t i2m_components_build(const int64_t lo[3], const int64_t n[3], i2m_label_fn label, const void *ctx,
+                               i2m_components_t *c);
+/** Components of a whole image (its voxels must be resident). */
+i2m_err_t i2m_image_components(const i2m_image_t *img, i2m_components_t *c);
+/** Root run of voxel (i,j,k)'s component, -1 outside the block (its size: c->size[root]). */
+int64_t i2m_components_find(const i2m_components_t *c, int64_t i, int64_t j, int64_t k);
+void i2m_components_free(i2m_components_t *c);
+
 /** Grid frame -> world (LPS). */
 void i2m_image_grid_to_world(const i2m_image_t *img, const double g[3], double w[3]);
 

@@ -73,6 +73,8 @@ typedef struct {
   int64_t junction_skips; /**< R5 skipped near junctions of three or more labels */
   int64_t tets_created;
   int64_t deferred;       /**< deterministic mode: elements left to the sequential pass */
+  int64_t fragments;      /**< fragments relabelled (i2m_refine_repair_fragments) */
+  int64_t fragment_tets;  /**< their tets */
   double seconds;
 } i2m_refine_stats_t;
 
@@ -168,10 +170,20 @@ i2m_err_t i2m_refine_tiling_sequential(i2m_refine_t *r);
 void i2m_refine_tiling_figures(const i2m_refine_t *r, double *side, int64_t *rounds, int64_t *sequential_ops);
 
 /** After refinement: frees the spatial grids and the workers' scratch (extraction, stats and
- *  parameters stay usable).  The image oracle is not used any more. */
+ *  parameters stay usable; the transform is asked only by i2m_refine_repair_fragments). */
 void i2m_refine_release_scratch(i2m_refine_t *r);
 /** After extraction: frees the triangulation too (stats and parameters stay usable). */
 void i2m_refine_release_mesh(i2m_refine_t *r);
+
+/** After refinement: gives every fragment the label it shares the most face area with (0:
+ *  it leaves the mesh).  A fragment is a face-connected piece of one label of at most 64 tets
+ *  and less than a voxel of volume, inside a component of the image (6-connected voxels of
+ *  that label) of at least 64 voxels: a bit of a larger region left apart from it where the
+ *  region narrows below delta, floating or hanging by an edge (a loose body or a hinge in a
+ *  finite-element model).  Specks the image really has stay.  Interface triangles are only
+ *  removed or relabelled, so every guarantee holds.  Uses the transform (still alive); the
+ *  same result on any number of threads; counted in the stats. */
+i2m_err_t i2m_refine_repair_fragments(i2m_refine_t *r);
 
 /** The labelled mesh: tets whose circumcentre is inside, with their label value, and the
  *  interface triangles, in world coordinates, compacted.  Not collective. */

@@ -54,12 +54,13 @@ static i2m_err_t run_mesher(run_t *r)
   i2m_threads_opts_t to = {o->threads, o->coarse_factor, !o->no_pin, o->deterministic != 0};
   I2M_CALL(i2m_threads_refine(r->ref, &to, &r->team));
   if (o->check) I2M_CALL(i2m_dt_check(i2m_refine_dt(r->ref), true));
-  i2m_refine_release_scratch(r->ref); /* the oracles' memory, before extraction adds the mesh */
-  i2m_edt_destroy(&r->edt);
-  i2m_image_release_voxels(r->img);
+  i2m_refine_release_scratch(r->ref); /* the grids' memory, before extraction adds the mesh */
   phase_end(r, I2M_PHASE_REFINE);
 
   phase_begin(r, "extraction");
+  I2M_CALL(i2m_refine_repair_fragments(r->ref)); /* (asks the transform about the image) */
+  i2m_edt_destroy(&r->edt);
+  i2m_image_release_voxels(r->img);
   if (o->report) /* (only the JSON report gives it: one pass over the whole triangulation) */
     r->rep.checksum = i2m_dt_checksum(i2m_refine_dt(r->ref), &r->rep.working_tets);
   I2M_CALL(i2m_refine_extract(r->ref, &r->mesh));

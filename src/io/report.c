@@ -30,6 +30,9 @@ void i2m_report_print(FILE *f, const i2m_report_t *r)
           (long long)r->stats.insertions, (long long)r->stats.rule[1], (long long)r->stats.rule[2],
           (long long)r->stats.rule[3], (long long)r->stats.rule[4], (long long)r->stats.rule[5],
           (long long)r->stats.rule[6], (long long)r->stats.removals);
+  if (r->stats.fragments)
+    fprintf(f, "  fragments    %lld fragments (%lld tets) given a neighbour's label\n", (long long)r->stats.fragments,
+            (long long)r->stats.fragment_tets);
   fprintf(f, "  time         ");
   for (int p = 0; p < I2M_NPHASES; p++) fprintf(f, "%s %.2f s, ", i2m_phase_name(p), r->phase_seconds[p]);
   fprintf(f, "total %.2f s\n", r->total_seconds);
@@ -140,6 +143,7 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
   fprintf(f, "  \"refinement\": {\"insertions\": %lld, \"removals\": %lld, \"rollbacks\": %lld, \"failed\": %lld, \"duplicates\": %lld, \"tets_created\": %lld, ",
           (long long)s->insertions, (long long)s->removals, (long long)s->rollbacks, (long long)s->failed,
           (long long)s->duplicates, (long long)s->tets_created);
+  fprintf(f, "\"fragments\": %lld, \"fragment_tets\": %lld, ", (long long)s->fragments, (long long)s->fragment_tets);
   fprintf(f, "\"rules\": {\"R1\": %lld, \"R2\": %lld, \"R3\": %lld, \"R4\": %lld, \"R5\": %lld, \"R6\": %lld, \"R7\": %lld}},\n",
           (long long)s->rule[1], (long long)s->rule[2], (long long)s->rule[3], (long long)s->rule[4],
           (long long)s->rule[5], (long long)s->rule[6], (long long)s->rule[7]);

@@ -184,6 +184,8 @@ void i2m_refine_get_stats(const i2m_refine_t *r, i2m_refine_stats_t *s)
     s->deferred += w->deferred;
     s->seconds = fmax(s->seconds, w->seconds);
   }
+  s->fragments = r->fragments;
+  s->fragment_tets = r->fragment_tets;
 }
 
 /* ---- several workers (the threads layer drives them) ---- */

@@ -173,6 +173,7 @@ struct i2m_refine {
   int tilings_made;       /* (each tiling has its own range of global ids) */
   i2m_refine_worker_t *workers; /* owned: [nworkers] */
   int nworkers;
+  int64_t fragments, fragment_tets; /* fragments relabelled (fragments.c) */
 };
 
 /* classify.c */

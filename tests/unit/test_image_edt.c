@@ -1,7 +1,8 @@
 /* Unit tests of the image oracles (layer 2): the feature transform is exact (every voxel's
  * feature is a nearest boundary voxel, by brute force); the closest interface point lies on
  * an interface and is within half a voxel diagonal of the true distance; the early-out
- * bound never hides a point within reach; bisection brackets a label change. */
+ * bound never hides a point within reach; bisection brackets a label change; connected
+ * components agree with a flood fill. */
 #include <math.h>
 #include <stdlib.h>
 
@@ -190,10 +191,80 @@ static void test_bisection(void)
   i2m_image_destroy(&img);
 }
 
+/* 6-connected components of random blobs against a flood fill: two voxels share a root
+ * exactly when the fill reaches one from the other, and the size is the fill's count; a
+ * block's components see only the block. */
+static int image_label(const void *ctx, int64_t i, int64_t j, int64_t k)
+{
+  return i2m_image_label_voxel((const i2m_image_t *)ctx, i, j, k);
+}
+
+static void test_components(void)
+{
+  i2m_image_t *img = random_image(14, 11, 9, 0.25);
+  const int64_t *n = img->n, nv = n[0] * n[1] * n[2];
+  i2m_components_t c;
+  CU_ASSERT_FATAL(i2m_image_components(img, &c) == I2M_OK);
+  int64_t *fill = malloc((size_t)nv * sizeof *fill), *stack = malloc((size_t)nv * sizeof *stack);
+  for (int64_t v = 0; v < nv; v++) fill[v] = -1;
+  int ncomp = 0;
+  for (int64_t s = 0; s < nv; s++) {
+    if (fill[s] >= 0) continue;
+    int64_t top = 0, count = 0;
+    const int lab = i2m_image_index(img, s);
+    fill[s] = s;
+    stack[top++] = s;
+    while (top > 0) {
+      const int64_t v = stack[--top], i = v % n[0], j = v / n[0] % n[1], k = v / (n[0] * n[1]);
+      const int64_t nb[6][3] = {{i - 1, j, k}, {i + 1, j, k}, {i, j - 1, k}, {i, j + 1, k}, {i, j, k - 1}, {i, j, k + 1}};
+      count++;
+      for (int q = 0; q < 6; q++) {
+        const int64_t *x = nb[q];
+        if (x[0] < 0 || x[1] < 0 || x[2] < 0 || x[0] >= n[0] || x[1] >= n[1] || x[2] >= n[2]) continue;
+        const int64_t w = (x[2] * n[1] + x[1]) * n[0] + x[0];
+        if (fill[w] < 0 && i2m_image_index(img, w) == lab) {
+          fill[w] = s;
+          stack[top++] = w;
+        }
+      }
+    }
+    ncomp++;
+    const int64_t root = i2m_components_find(&c, s % n[0], s / n[0] % n[1], s / (n[0] * n[1]));
+    CU_ASSERT_EQUAL(c.size[root], count);
+  }
+  CU_ASSERT(ncomp > 3);
+  int64_t *root_of_fill = malloc((size_t)nv * sizeof *root_of_fill);
+  for (int64_t v = 0; v < nv; v++) root_of_fill[v] = -1;
+  for (int64_t v = 0; v < nv; v++) { /* the fills and the roots correspond one to one */
+    const int64_t root = i2m_components_find(&c, v % n[0], v / n[0] % n[1], v / (n[0] * n[1]));
+    if (root_of_fill[fill[v]] < 0) root_of_fill[fill[v]] = root;
+    CU_ASSERT_EQUAL(root_of_fill[fill[v]], root);
+    CU_ASSERT_EQUAL(c.lab[root], i2m_image_index(img, v));
+  }
+  int64_t nroots = 0;
+  for (int64_t r = 0; r < c.nruns; r++) nroots += c.par[r] == r;
+  CU_ASSERT_EQUAL(nroots, ncomp);
+  i2m_components_free(&c);
+  const int64_t lo[3] = {2, 1, 3}, bn[3] = {5, 6, 4}; /* a block: only its voxels */
+  CU_ASSERT_FATAL(i2m_components_build(lo, bn, image_label, img, &c) == I2M_OK);
+  CU_ASSERT_EQUAL(i2m_components_find(&c, 1, 1, 3), -1);
+  CU_ASSERT_EQUAL(i2m_components_find(&c, 7, 1, 3), -1);
+  int64_t total = 0;
+  for (int64_t r = 0; r < c.nruns; r++) total += c.par[r] == r ? c.size[r] : 0;
+  CU_ASSERT_EQUAL(total, bn[0] * bn[1] * bn[2]);
+  CU_ASSERT(i2m_components_find(&c, 2, 1, 3) >= 0);
+  i2m_components_free(&c);
+  free(fill);
+  free(stack);
+  free(root_of_fill);
+  i2m_image_destroy(&img);
+}
+
 static const test_case_t cases[] = {
     {"feature transform exact (brute force)", test_feature_transform_exact},
     {"closest interface point", test_closest_point},
     {"image without interface", test_no_interface},
     {"segment bisection", test_bisection},
+    {"connected components against a flood fill", test_components},
 };
 TEST_MAIN("image oracles", cases)

@@ -1,7 +1,8 @@
 /* i2m-check (tools/check): an independent checker of written meshes.  It reads a mesh file
  * (VTU, Medit, Gmsh 4.1), recomputes validity, quality and, with the image, fidelity, with
  * its own geometry code (it never uses src/geom or src/delaunay: it must not share a bug with
- * the mesher).  From libi2m it uses only the base utilities and the image reader.
+ * the mesher).  From libi2m it uses only the base utilities and the image layer (reader,
+ * connected components).
  *
  * Files: read_mesh.c (the three formats), ck_geom.c (exact orientation, distances,
  * angles), validity.c (indices, orientation, face matching, vertices, interface triangles),
@@ -191,7 +192,7 @@ typedef struct {
   /* thresholds (NAN / -1 when not given) */
   double max_ratio, min_facet_angle, facet_exceptions, max_hausdorff, max_volume_error;
   double max_mesh_to_image, max_p99;
-  int64_t volume_min_voxels, require_labels;
+  int64_t volume_min_voxels, require_labels, require_whole;
   int nviol;
   char viol[CK_MAX_VIOL][256];
   double t_read, t_validity, t_quality, t_fidelity, t_total;

@@ -25,6 +25,8 @@ static const char *USAGE =
     "  --max-volume-error PCT        |volume error| <= PCT for labels of >= N voxels (--image)\n"
     "  --volume-min-voxels N         N for --max-volume-error (default 10000)\n"
     "  --require-labels N            every label of >= N voxels is in the mesh (--image)\n"
+    "  --require-whole N             every label whose voxels form one 6-connected component of\n"
+    "                                >= N voxels is one face-connected piece in the mesh (--image)\n"
     "exit status: 0 valid and thresholds met, 1 invalid or violated, 2 unreadable / usage\n";
 
 static int fail_usage(const char *fmt, const char *a)
@@ -55,6 +57,7 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
   r->facet_exceptions = 0;
   r->volume_min_voxels = 10000;
   r->require_labels = -1;
+  r->require_whole = -1;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i];
     if (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0) {
@@ -96,6 +99,8 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
         r->volume_min_voxels = (int64_t)v;
       else if (strcmp(a, "--require-labels") == 0)
         r->require_labels = (int64_t)v;
+      else if (strcmp(a, "--require-whole") == 0)
+        r->require_whole = (int64_t)v;
       else
         return fail_usage("unknown option %s", a);
       continue;
@@ -104,10 +109,10 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
     o->mesh = a;
   }
   if (!o->mesh) return fail_usage("%s", "no mesh file given");
-  if (!o->image && (!isnan(r->max_hausdorff) || !isnan(r->max_volume_error) || r->require_labels >= 0 ||
+  if (!o->image && (!isnan(r->max_hausdorff) || !isnan(r->max_volume_error) || r->require_labels >= 0 || r->require_whole >= 0 ||
                     !isnan(r->max_mesh_to_image) || !isnan(r->max_p99)))
     return fail_usage("%s", "the fidelity thresholds (--max-hausdorff, --max-mesh-to-image, --max-p99, "
-                            "--max-volume-error, --require-labels) need --image");
+                            "--max-volume-error, --require-labels, --require-whole) need --image");
   return -1;
 }
 
@@ -150,6 +155,9 @@ static void thresholds(ck_result_t *r)
     if (r->require_labels >= 0 && L->in_image && L->voxels >= r->require_labels && !L->in_mesh)
       violation(r, "require-labels: label %.0f (%.0f voxels) is missing from the mesh",
                 (double)L->value, (double)L->voxels, 0);
+    if (r->require_whole >= 0 && L->image_components == 1 && L->voxels >= r->require_whole && L->mesh_components != 1)
+      violation(r, "require-whole: label %.0f (one image component of %.0f voxels) is %.0f pieces in the mesh",
+                (double)L->value, (double)L->voxels, (double)L->mesh_components);
   }
 }
 

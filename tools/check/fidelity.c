@@ -512,98 +512,11 @@ fail:
   return err;
 }
 
-/* ---- 6-connected components of the image: runs along i, union-find over runs ---- */
-typedef struct {
-  int64_t *row;  /* owned: [n1*n2+1] first run of each row (j,k) */
-  int32_t *x0;   /* owned: [nruns] first i */
-  int32_t *len;  /* owned: [nruns] */
-  uint16_t *lab; /* owned: [nruns] label index */
-  int64_t *par;  /* owned: [nruns] union-find parent */
-  int64_t *size; /* owned: [nruns] voxels of the component (valid at roots) */
-  int64_t nruns;
-} runs_t;
-
-static void runs_free(runs_t *r)
-{
-  i2m_free(&r->row);
-  i2m_free(&r->x0);
-  i2m_free(&r->len);
-  i2m_free(&r->lab);
-  i2m_free(&r->par);
-  i2m_free(&r->size);
-}
-
-/* Unites runs of rows a and b (both sorted by x0) that overlap and share a label. */
-static void runs_join(runs_t *r, int64_t a, int64_t b)
-{
-  int64_t i = r->row[a], j = r->row[b];
-  while (i < r->row[a + 1] && j < r->row[b + 1]) {
-    int64_t ie = r->x0[i] + r->len[i], je = r->x0[j] + r->len[j];
-    if (r->x0[i] < je && r->x0[j] < ie && r->lab[i] == r->lab[j]) ck_uf_union(r->par, i, j);
-    if (ie < je)
-      i++;
-    else
-      j++;
-  }
-}
-
-static i2m_err_t image_components(const i2m_image_t *img, runs_t *r)
-{
-  int64_t nrows = img->n[1] * img->n[2], n0 = img->n[0];
-  memset(r, 0, sizeof *r);
-  I2M_CALL(i2m_malloc((size_t)nrows + 1, sizeof *r->row, &r->row));
-  int64_t cnt = 0;
-  for (int64_t row = 0; row < nrows; row++) {
-    const int64_t v = row * n0;
-    r->row[row] = cnt;
-    for (int64_t i = 1; i < n0; i++) cnt += i2m_image_index(img, v + i) != i2m_image_index(img, v + i - 1);
-    cnt++; /* the run that starts the row */
-  }
-  r->row[nrows] = cnt;
-  r->nruns = cnt;
-  I2M_CALL(i2m_malloc((size_t)cnt, sizeof *r->x0, &r->x0));
-  I2M_CALL(i2m_malloc((size_t)cnt, sizeof *r->len, &r->len));
-  I2M_CALL(i2m_malloc((size_t)cnt, sizeof *r->lab, &r->lab));
-  I2M_CALL(i2m_malloc((size_t)cnt, sizeof *r->par, &r->par));
-  I2M_CALL(i2m_calloc((size_t)cnt, sizeof *r->size, &r->size));
-  cnt = 0;
-  for (int64_t row = 0; row < nrows; row++) {
-    const int64_t v = row * n0;
-    for (int64_t i = 0; i < n0; i++) {
-      int lab = i2m_image_index(img, v + i);
-      if (i == 0 || lab != i2m_image_index(img, v + i - 1)) {
-        r->x0[cnt] = (int32_t)i;
-        r->len[cnt] = 0;
-        r->lab[cnt] = (uint16_t)lab;
-        r->par[cnt] = cnt;
-        cnt++;
-      }
-      r->len[cnt - 1]++;
-    }
-  }
-  for (int64_t k = 0; k < img->n[2]; k++)
-    for (int64_t j = 0; j < img->n[1]; j++) {
-      int64_t row = k * img->n[1] + j;
-      if (j > 0) runs_join(r, row, row - 1);
-      if (k > 0) runs_join(r, row, row - img->n[1]);
-    }
-  for (int64_t i = 0; i < cnt; i++) r->size[ck_uf_find(r->par, i)] += r->len[i];
-  return I2M_OK;
-}
-
 /* Component size of voxel (i,j,k); 0 outside the image. */
-static int64_t voxel_component(const i2m_image_t *img, runs_t *r, int64_t i, int64_t j, int64_t k)
+static int64_t voxel_component(const i2m_components_t *r, int64_t i, int64_t j, int64_t k)
 {
-  if (i < 0 || j < 0 || k < 0 || i >= img->n[0] || j >= img->n[1] || k >= img->n[2]) return 0;
-  int64_t row = k * img->n[1] + j, lo = r->row[row], hi = r->row[row + 1] - 1;
-  while (lo < hi) {
-    int64_t mid = (lo + hi + 1) / 2;
-    if (r->x0[mid] <= i)
-      lo = mid;
-    else
-      hi = mid - 1;
-  }
-  return r->size[ck_uf_find(r->par, lo)];
+  const int64_t root = i2m_components_find(r, i, j, k);
+  return root < 0 ? 0 : r->size[root];
 }
 
 i2m_err_t ck_mesh_components(const ck_mesh_t *m, const ck_topo_t *topo, int64_t **comp,
@@ -647,7 +560,7 @@ static int64_t label_slot(const ck_fidelity_t *f, int64_t value)
 }
 
 static i2m_err_t label_table(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image_t *img,
-                             runs_t *runs, ck_fidelity_t *f)
+                             i2m_components_t *runs, ck_fidelity_t *f)
 {
   int64_t *vals = NULL, nv = 0, *comp = NULL, ncomp;
   I2M_CALL(i2m_malloc((size_t)(m->nt + img->nlabels), sizeof *vals, &vals));
@@ -748,15 +661,15 @@ static i2m_err_t build_tri_grid(const tctx_t *tc, int64_t ntri, double min_h, gr
   return grid_build(g, ntri, tri_bbox, tc);
 }
 
-static void worst_face(const i2m_image_t *img, runs_t *runs, const vface_t *fc, ck_fidelity_t *f)
+static void worst_face(const i2m_image_t *img, i2m_components_t *runs, const vface_t *fc, ck_fidelity_t *f)
 {
   int64_t c0[3] = {fc->c[0], fc->c[1], fc->c[2]}, c1[3] = {fc->c[0], fc->c[1], fc->c[2]};
   c1[fc->axis]++;
   int l0 = i2m_image_label_voxel(img, c0[0], c0[1], c0[2]);
   int l1 = i2m_image_label_voxel(img, c1[0], c1[1], c1[2]);
   int64_t v0 = img->label_value[l0], v1 = img->label_value[l1];
-  int64_t s0 = voxel_component(img, runs, c0[0], c0[1], c0[2]);
-  int64_t s1 = voxel_component(img, runs, c1[0], c1[1], c1[2]);
+  int64_t s0 = voxel_component(runs, c0[0], c0[1], c0[2]);
+  int64_t s1 = voxel_component(runs, c1[0], c1[1], c1[2]);
   int sw = v0 > v1;
   f->worst_pair[0] = sw ? v1 : v0;
   f->worst_pair[1] = sw ? v0 : v1;
@@ -771,7 +684,7 @@ i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image
   vface_t *faces = NULL;
   int64_t nf = 0, worst = -1;
   grid_t fg = {0}, tg = {0};
-  runs_t runs = {0};
+  i2m_components_t runs = {0};
   pooled_t pool = {{NULL, NULL}, {NULL, NULL}, {0, 0}};
   fctx_t fc = {img, NULL, NULL};
   i2m_err_t err = I2M_OK;
@@ -800,7 +713,7 @@ i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image
   double t1 = i2m_wtime();
   I2M_CALL_GOTO(err, out, image_to_mesh(faces, nf, &tg, &tc, img, f, &worst, &pool));
   double t2 = i2m_wtime();
-  I2M_CALL_GOTO(err, out, image_components(img, &runs));
+  I2M_CALL_GOTO(err, out, i2m_image_components(img, &runs));
   double t3 = i2m_wtime();
   f->t_mesh_to_image = t1 - t0;
   f->t_image_to_mesh = t2 - t1;
@@ -820,7 +733,7 @@ out:
   i2m_free(&fc.box);
   grid_free(&fg);
   grid_free(&tg);
-  runs_free(&runs);
+  i2m_components_free(&runs);
   pooled_free(&pool);
   return err;
 }

@@ -219,7 +219,8 @@ void ck_report_json(FILE *f, const ck_result_t *r)
   JD(f, "max_p99", r->max_p99, 0);
   JD(f, "max_volume_error", r->max_volume_error, 0);
   JI(f, "volume_min_voxels", r->volume_min_voxels, 0);
-  JI(f, "require_labels", r->require_labels, 1);
+  JI(f, "require_labels", r->require_labels, 0);
+  JI(f, "require_whole", r->require_whole, 1);
   fprintf(f, "}, ");
   JB(f, "passed", r->validity.valid && r->nviol == 0, 0);
   fprintf(f, "\"violations\": [");

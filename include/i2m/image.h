@@ -132,11 +132,12 @@ typedef struct {
   int64_t nruns;
 } i2m_components_t;
 
-/** Label index of voxel (i,j,k) in an image or transform (ctx). */
-typedef int (*i2m_label_fn)(const void *ctx, int64_t i, int64_t j, int64_t k);
+/** Reads the label indices of voxels (i0 .. i0 + n - 1, j, k), all inside the image, from an
+ *  image or a transform (ctx). */
+typedef void (*i2m_label_row_fn)(const void *ctx, int64_t i0, int64_t j, int64_t k, int64_t n, uint16_t *out);
 
-/** Components of the block lo .. lo + n - 1, labels read through @p label. */
-i2m_err_t i2m_components_build(const int64_t lo[3], const int64_t n[3], i2m_label_fn label, const void *ctx,
+/** Components of the block lo .. lo + n - 1 (inside the image), read a row at a time. */
+i2m_err_t i2m_components_build(const int64_t lo[3], const int64_t n[3], i2m_label_row_fn read_row, const void *ctx,
                                i2m_components_t *c);
 /** Components of a whole image (its voxels must be resident). */
 i2m_err_t i2m_image_components(const i2m_image_t *img, i2m_components_t *c);

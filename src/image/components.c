@@ -36,33 +36,44 @@ static void join_rows(i2m_components_t *c, int64_t a, int64_t b)
   }
 }
 
-/* Counts (out == NULL) or records the runs of every row. */
-static int64_t cut_runs(i2m_components_t *c, i2m_label_fn label, const void *ctx, bool record)
+static i2m_err_t runs_room(i2m_components_t *c, int64_t need, int64_t *cap)
 {
-  int64_t cnt = 0;
-  for (int64_t k = 0; k < c->n[2]; k++)
-    for (int64_t j = 0; j < c->n[1]; j++) {
-      if (record) c->row[k * c->n[1] + j] = cnt;
-      int prev = -1;
-      for (int64_t i = 0; i < c->n[0]; i++) {
-        const int l = label(ctx, c->lo[0] + i, c->lo[1] + j, c->lo[2] + k);
-        if (l != prev) {
-          if (record) {
-            c->x0[cnt] = (int32_t)i;
-            c->len[cnt] = 0;
-            c->lab[cnt] = (uint16_t)l;
-            c->par[cnt] = cnt;
-          }
-          cnt++;
-          prev = l;
-        }
-        if (record) c->len[cnt - 1]++;
-      }
-    }
-  return cnt;
+  if (need <= *cap) return I2M_OK;
+  const int64_t n = need + need / 2 + 1024;
+  I2M_CALL(i2m_realloc((size_t)n, sizeof *c->x0, &c->x0));
+  I2M_CALL(i2m_realloc((size_t)n, sizeof *c->len, &c->len));
+  I2M_CALL(i2m_realloc((size_t)n, sizeof *c->lab, &c->lab));
+  I2M_CALL(i2m_realloc((size_t)n, sizeof *c->par, &c->par));
+  *cap = n;
+  return I2M_OK;
 }
 
-i2m_err_t i2m_components_build(const int64_t lo[3], const int64_t n[3], i2m_label_fn label, const void *ctx,
+/* Cuts every row into runs (one row of labels at a time, read into buf). */
+static i2m_err_t cut_runs(i2m_components_t *c, i2m_label_row_fn read_row, const void *ctx, uint16_t *buf)
+{
+  int64_t cnt = 0, cap = 0;
+  for (int64_t k = 0; k < c->n[2]; k++)
+    for (int64_t j = 0; j < c->n[1]; j++) {
+      c->row[k * c->n[1] + j] = cnt;
+      read_row(ctx, c->lo[0], c->lo[1] + j, c->lo[2] + k, c->n[0], buf);
+      for (int64_t i = 0; i < c->n[0]; i++) {
+        if (i > 0 && buf[i] == buf[i - 1]) {
+          c->len[cnt - 1]++;
+          continue;
+        }
+        I2M_CALL(runs_room(c, cnt + 1, &cap));
+        c->x0[cnt] = (int32_t)i;
+        c->len[cnt] = 1;
+        c->lab[cnt] = buf[i];
+        c->par[cnt] = cnt;
+        cnt++;
+      }
+    }
+  c->nruns = cnt;
+  return I2M_OK;
+}
+
+i2m_err_t i2m_components_build(const int64_t lo[3], const int64_t n[3], i2m_label_row_fn read_row, const void *ctx,
                                i2m_components_t *c)
 {
   memset(c, 0, sizeof *c);
@@ -71,16 +82,13 @@ i2m_err_t i2m_components_build(const int64_t lo[3], const int64_t n[3], i2m_labe
     c->n[a] = n[a];
   }
   const int64_t nrows = n[1] * n[2];
-  const int64_t cnt = cut_runs(c, label, ctx, false);
+  uint16_t *buf = NULL;
   i2m_err_t err = I2M_OK;
+  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)n[0], sizeof *buf, &buf));
   I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)nrows + 1, sizeof *c->row, &c->row));
-  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)cnt, sizeof *c->x0, &c->x0));
-  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)cnt, sizeof *c->len, &c->len));
-  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)cnt, sizeof *c->lab, &c->lab));
-  I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)cnt, sizeof *c->par, &c->par));
-  I2M_CALL_GOTO(err, fail, i2m_calloc((size_t)cnt, sizeof *c->size, &c->size));
-  c->nruns = cut_runs(c, label, ctx, true);
+  I2M_CALL_GOTO(err, fail, cut_runs(c, read_row, ctx, buf));
   c->row[nrows] = c->nruns;
+  I2M_CALL_GOTO(err, fail, i2m_calloc((size_t)c->nruns, sizeof *c->size, &c->size));
   for (int64_t k = 0; k < n[2]; k++)
     for (int64_t j = 0; j < n[1]; j++) {
       const int64_t row = k * n[1] + j;
@@ -91,8 +99,10 @@ i2m_err_t i2m_components_build(const int64_t lo[3], const int64_t n[3], i2m_labe
     c->par[i] = uf_find(c->par, i);
     c->size[c->par[i]] += c->len[i];
   }
+  i2m_free(&buf);
   return I2M_OK;
 fail:
+  i2m_free(&buf);
   i2m_components_free(c);
   return err;
 }
@@ -125,13 +135,15 @@ void i2m_components_free(i2m_components_t *c)
   c->nruns = 0;
 }
 
-static int image_label_fn(const void *ctx, int64_t i, int64_t j, int64_t k)
+static void image_row(const void *ctx, int64_t i0, int64_t j, int64_t k, int64_t n, uint16_t *out)
 {
-  return i2m_image_label_voxel((const i2m_image_t *)ctx, i, j, k);
+  const i2m_image_t *img = ctx;
+  const int64_t v = (k * img->n[1] + j) * img->n[0] + i0;
+  for (int64_t i = 0; i < n; i++) out[i] = (uint16_t)i2m_image_index(img, v + i);
 }
 
 i2m_err_t i2m_image_components(const i2m_image_t *img, i2m_components_t *c)
 {
   const int64_t lo[3] = {0, 0, 0};
-  return i2m_components_build(lo, img->n, image_label_fn, img, c);
+  return i2m_components_build(lo, img->n, image_row, img, c);
 }

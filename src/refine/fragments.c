@@ -168,7 +168,7 @@ static i2m_err_t small_piece_tets(const i2m_dt_t *dt, _Atomic uint32_t *par, _At
     }
     cand[ncand++] = (uint64_t)root << 32 | t;
   }
-  qsort(cand, ncand, sizeof *cand, cmp_u64);
+  if (ncand > 0) qsort(cand, ncand, sizeof *cand, cmp_u64); /* (qsort wants an array even for none) */
   *out = cand;
   *nout = ncand;
   return I2M_OK;

@@ -64,6 +64,14 @@ int i2m_edt_label_at(const i2m_edt_t *e, const double g[3]);
  *  (so the two always agree). */
 int i2m_edt_label_at_world(const i2m_edt_t *e, const double w[3]);
 
+/** The voxel (image indices) that holds world point w by the same rule; false outside K
+ *  (where every label is 0). */
+bool i2m_edt_voxel_at_world(const i2m_edt_t *e, const double w[3], int64_t v[3]);
+
+/** The 6-connected components of the labels over K (which holds every labelled voxel),
+ *  read from the packed words (or the image). */
+i2m_err_t i2m_edt_components(const i2m_edt_t *e, i2m_components_t *c);
+
 /** Computes the feature transform of @p img (OpenMP-parallel over scanlines).  An image
  *  without any interface gives a transform with nboundary = 0.  Not collective. */
 i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out);

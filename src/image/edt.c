@@ -339,6 +339,34 @@ int i2m_edt_label_at_world(const i2m_edt_t *e, const double w[3])
   return label_k(e, u);
 }
 
+bool i2m_edt_voxel_at_world(const i2m_edt_t *e, const double w[3], int64_t v[3])
+{
+  double u[3];
+  affine3(e->w2k, w, u);
+  for (int a = 0; a < 3; a++) {
+    if (!(u[a] >= 0.0 && u[a] < (double)e->m[a])) return false; /* the rule of label_k */
+    v[a] = e->lo[a] + (int64_t)u[a];
+  }
+  return true;
+}
+
+/* A row of K's labels for i2m_components_build: the words' high bits when packed. */
+static void k_row(const void *ctx, int64_t i0, int64_t j, int64_t k, int64_t n, uint16_t *out)
+{
+  const i2m_edt_t *e = ctx;
+  if (e->labels_packed) {
+    const int32_t *w = e->ft + ((k - e->lo[2]) * e->m[1] + (j - e->lo[1])) * e->m[0] + (i0 - e->lo[0]);
+    for (int64_t i = 0; i < n; i++) out[i] = (uint16_t)((uint32_t)w[i] >> e->label_shift);
+    return;
+  }
+  for (int64_t i = 0; i < n; i++) out[i] = (uint16_t)i2m_image_label_voxel(e->img, i0 + i, j, k);
+}
+
+i2m_err_t i2m_edt_components(const i2m_edt_t *e, i2m_components_t *c)
+{
+  return i2m_components_build(e->lo, e->m, k_row, e, c);
+}
+
 /* Label of box voxel idx (box-linear index, box coordinates c): its word's high bits when
  * the labels are packed (nearly always), else the image's voxel. */
 static inline int box_label(const i2m_edt_t *e, int64_t idx, const int64_t c[3], bool packed)

@@ -19,8 +19,6 @@ static int64_t neighbour_label(const i2m_refine_t *r, uint32_t t, int i)
  * prefix sums, filled in parallel; the output does not depend on the number of threads. */
 #define EXTRACT_CHUNKS 256
 
-static bool kept(const i2m_refine_t *r, uint32_t t) { return i2m_dt_alive(r->dt, t) && tinfo(r->dt, t)->label != 0; }
-
 /* The interface faces of kept tet t to write (each once: from the side with the smaller label
  * value, or the only labelled side). */
 static int faces_to_write(const i2m_refine_t *r, uint32_t t, int64_t lt, int64_t lu[4])
@@ -43,7 +41,7 @@ static void extract_count(const i2m_refine_t *r, uint8_t *used, int64_t *ntet, i
     uint32_t lo = (uint32_t)((uint64_t)nslots * c / EXTRACT_CHUNKS), hi = (uint32_t)((uint64_t)nslots * (c + 1) / EXTRACT_CHUNKS);
     int64_t nt = 0, nf = 0;
     for (uint32_t t = lo; t < hi; t++) {
-      if (!kept(r, t)) continue;
+      if (!tet_kept(r->dt, t)) continue;
       nt++;
       int64_t lu[4];
       nf += faces_to_write(r, t, r->img->label_value[tinfo(dt, t)->label], lu);
@@ -68,7 +66,7 @@ static void extract_fill_chunk(const i2m_refine_t *r, const int32_t *vmap, i2m_t
   uint32_t nslots = i2m_dt_ntets_slots(dt);
   uint32_t lo = (uint32_t)((uint64_t)nslots * c / EXTRACT_CHUNKS), hi = (uint32_t)((uint64_t)nslots * (c + 1) / EXTRACT_CHUNKS);
   for (uint32_t t = lo; t < hi; t++) {
-    if (!kept(r, t)) continue;
+    if (!tet_kept(r->dt, t)) continue;
     const uint32_t *v = dt->tv + 4 * (size_t)t;
     int64_t lt = r->img->label_value[tinfo(dt, t)->label], lu[4];
     for (int i = 0; i < 4; i++) m->tet[4 * kt + i] = vmap[v[i]];

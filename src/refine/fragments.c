@@ -30,8 +30,6 @@
 #define FRAGMENT_MAX_VOXELS 1.0
 #define FRAGMENT_MIN_IMAGE_VOXELS 64
 
-static bool kept(const i2m_dt_t *dt, uint32_t t) { return i2m_dt_alive(dt, t) && tinfo(dt, t)->label != 0; }
-
 /* ---- union-find over tet slots ---- */
 
 static uint32_t uf_find(_Atomic uint32_t *par, uint32_t x)
@@ -77,7 +75,7 @@ static void mesh_pieces(const i2m_dt_t *dt, _Atomic uint32_t *par, _Atomic uint3
     }
     I2M_OMP(omp for schedule(dynamic, 4096))
     for (int64_t t = 0; t < n; t++) {
-      if (!kept(dt, (uint32_t)t)) continue;
+      if (!tet_kept(dt, (uint32_t)t)) continue;
       const uint16_t l = tinfo(dt, (uint32_t)t)->label;
       for (int i = 0; i < 4; i++) {
         uint32_t nb = dt->tn[4 * (size_t)t + i];
@@ -87,7 +85,7 @@ static void mesh_pieces(const i2m_dt_t *dt, _Atomic uint32_t *par, _Atomic uint3
     }
     I2M_OMP(omp for schedule(static))
     for (int64_t t = 0; t < n; t++) {
-      if (!kept(dt, (uint32_t)t)) continue;
+      if (!tet_kept(dt, (uint32_t)t)) continue;
       const uint32_t root = uf_find(par, (uint32_t)t);
       atomic_store_explicit(&par[t], root, memory_order_relaxed); /* (an ancestor: finds stay right) */
       if (atomic_load_explicit(&cnt[root], memory_order_relaxed) <= FRAGMENT_MAX_TETS)
@@ -105,17 +103,17 @@ static double tet_volume(const i2m_dt_t *dt, uint32_t t)
                                 i2m_dt_xyz(dt, v[3])) / 6.0;
 }
 
-/* The label sharing the most face area with the tets c[0..n) of label l (0 when only the
- * outside borders them).  area: [nlabels] scratch. */
-static int best_neighbour_label(const i2m_dt_t *dt, const uint32_t *c, int n, int nlabels, double *area)
+/* The label sharing the most face area with the tets of a piece (the low words of c[0..n);
+ * 0 when only the outside borders them).  area: [nlabels] scratch. */
+static int best_neighbour_label(const i2m_dt_t *dt, const uint64_t *c, uint32_t n, int nlabels, double *area)
 {
   static const int FACE[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
-  const uint16_t l = tinfo(dt, c[0])->label;
+  const uint16_t l = tinfo(dt, (uint32_t)c[0])->label;
   for (int m = 0; m < nlabels; m++) area[m] = 0;
-  for (int k = 0; k < n; k++) {
-    const uint32_t *v = dt->tv + 4 * (size_t)c[k];
+  for (uint32_t k = 0; k < n; k++) {
+    const uint32_t t = (uint32_t)c[k], *v = dt->tv + 4 * (size_t)t;
     for (int i = 0; i < 4; i++) {
-      const uint32_t nb = dt->tn[4 * (size_t)c[k] + i];
+      const uint32_t nb = dt->tn[4 * (size_t)t + i];
       const int m = nb == I2M_DT_NONE ? 0 : tinfo(dt, nb >> 2)->label;
       if (m == l) continue; /* a face inside the fragment */
       const double *a = i2m_dt_xyz(dt, v[FACE[i][0]]), *b = i2m_dt_xyz(dt, v[FACE[i][1]]), *d = i2m_dt_xyz(dt, v[FACE[i][2]]);
@@ -130,9 +128,9 @@ static int best_neighbour_label(const i2m_dt_t *dt, const uint32_t *c, int n, in
   return best;
 }
 
-/* A small piece: its root, where its tets start in the sorted candidates, how many. */
+/* A small piece: where its tets start in the sorted candidates, how many. */
 typedef struct {
-  uint32_t root, start, n;
+  uint32_t start, n;
   uint16_t label;
   double volume;
 } piece_t;
@@ -152,7 +150,7 @@ static i2m_err_t small_piece_tets(const i2m_dt_t *dt, _Atomic uint32_t *par, _At
   uint64_t *cand = NULL;
   size_t ncand = 0, cap = 0;
   for (uint32_t t = 0; t < n; t++) {
-    if (!kept(dt, t)) continue;
+    if (!tet_kept(dt, t)) continue;
     const uint32_t root = root_of(par, t);
     if (atomic_load_explicit(&cnt[root], memory_order_relaxed) > FRAGMENT_MAX_TETS) {
       big[tinfo(dt, t)->label] = 1;
@@ -179,11 +177,12 @@ static i2m_err_t small_pieces(const i2m_dt_t *dt, const uint64_t *cand, size_t n
 {
   piece_t *pc = NULL;
   size_t np = 0;
-  for (size_t k = 0; k < ncand; k += 0) {
+  size_t k = 0;
+  while (k < ncand) {
     const uint32_t root = (uint32_t)(cand[k] >> 32);
     if (np % 256 == 0) I2M_CALL(i2m_realloc(np + 256, sizeof *pc, &pc));
     piece_t *p = &pc[np++];
-    *p = (piece_t){root, (uint32_t)k, 0, tinfo(dt, (uint32_t)cand[k])->label, 0.0};
+    *p = (piece_t){(uint32_t)k, 0, tinfo(dt, (uint32_t)cand[k])->label, 0.0};
     for (; k < ncand && (uint32_t)(cand[k] >> 32) == root; k++) {
       p->n++;
       p->volume += tet_volume(dt, (uint32_t)cand[k]);
@@ -192,17 +191,6 @@ static i2m_err_t small_pieces(const i2m_dt_t *dt, const uint64_t *cand, size_t n
   *out = pc;
   *nout = np;
   return I2M_OK;
-}
-
-static void edt_row(const void *ctx, int64_t i0, int64_t j, int64_t k, int64_t n, uint16_t *out)
-{
-  const i2m_edt_t *e = ctx;
-  if (e->labels_packed) { /* rows of K (the only block asked for) are runs of words */
-    const int32_t *w = e->ft + ((k - e->lo[2]) * e->m[1] + (j - e->lo[1])) * e->m[0] + (i0 - e->lo[0]);
-    for (int64_t i = 0; i < n; i++) out[i] = (uint16_t)((uint32_t)w[i] >> e->label_shift);
-    return;
-  }
-  for (int64_t i = 0; i < n; i++) out[i] = (uint16_t)i2m_edt_label_voxel(e, i0 + i, j, k);
 }
 
 /* Voxels of the image component in which piece p lies: the component of the voxel of the
@@ -216,11 +204,7 @@ static int64_t piece_image_voxels(const i2m_refine_t *r, const i2m_components_t 
     tet_centre(r, (uint32_t)cand[p->start + i], &g);
     if (!isfinite(g.r2)) continue;
     int64_t v[3];
-    for (int a = 0; a < 3; a++) {
-      const double u = e->w2k[a][0] * g.cc[0] + e->w2k[a][1] * g.cc[1] + e->w2k[a][2] * g.cc[2] + e->w2k[a][3];
-      v[a] = (int64_t)floor(u) + e->lo[a];
-    }
-    if (i2m_edt_label_voxel(e, v[0], v[1], v[2]) != p->label) continue;
+    if (!i2m_edt_voxel_at_world(e, g.cc, v) || i2m_edt_label_voxel(e, v[0], v[1], v[2]) != p->label) continue;
     const int64_t root = i2m_components_find(ic, v[0], v[1], v[2]);
     if (root >= 0) return ic->size[root];
   }
@@ -236,7 +220,6 @@ i2m_err_t i2m_refine_repair_fragments(i2m_refine_t *r)
   uint64_t *cand = NULL;
   piece_t *pc = NULL;
   size_t ncand = 0, np = 0;
-  uint32_t *c = NULL;
   int64_t *main_piece = NULL; /* per label: its largest piece when it has no big one, else -1 */
   uint8_t *big = NULL;
   double *area = NULL;
@@ -249,7 +232,6 @@ i2m_err_t i2m_refine_repair_fragments(i2m_refine_t *r)
   I2M_CALL_GOTO(err, done, i2m_calloc((size_t)nlabels, sizeof *big, &big));
   I2M_CALL_GOTO(err, done, i2m_malloc((size_t)nlabels, sizeof *main_piece, &main_piece));
   I2M_CALL_GOTO(err, done, i2m_malloc((size_t)nlabels, sizeof *area, &area));
-  I2M_CALL_GOTO(err, done, i2m_malloc(FRAGMENT_MAX_TETS, sizeof *c, &c));
   const double t0 = i2m_wtime();
   mesh_pieces(dt, par, cnt);
   const double t1 = i2m_wtime();
@@ -262,15 +244,14 @@ i2m_err_t i2m_refine_repair_fragments(i2m_refine_t *r)
   }
   const double max_volume = FRAGMENT_MAX_VOXELS * r->img->spacing[0] * r->img->spacing[1] * r->img->spacing[2];
   const double t2 = i2m_wtime();
-  if (np > 0) I2M_CALL_GOTO(err, done, i2m_components_build(r->edt->lo, r->edt->m, edt_row, r->edt, &ic));
+  if (np > 0) I2M_CALL_GOTO(err, done, i2m_edt_components(r->edt, &ic));
   const double t3 = i2m_wtime();
   for (size_t k = 0; k < np; k++) {
     const piece_t *p = &pc[k];
     if (p->volume >= max_volume || main_piece[p->label] == (int64_t)k) continue;
     if (piece_image_voxels(r, &ic, cand, p) < FRAGMENT_MIN_IMAGE_VOXELS) continue;
-    for (uint32_t i = 0; i < p->n; i++) c[i] = (uint32_t)cand[p->start + i];
-    const int m = best_neighbour_label(dt, c, (int)p->n, nlabels, area);
-    for (uint32_t i = 0; i < p->n; i++) tinfo(dt, c[i])->label = (uint16_t)m;
+    const int m = best_neighbour_label(dt, cand + p->start, p->n, nlabels, area);
+    for (uint32_t i = 0; i < p->n; i++) tinfo(dt, (uint32_t)cand[p->start + i])->label = (uint16_t)m;
     r->fragments++;
     r->fragment_tets += p->n;
   }
@@ -281,7 +262,6 @@ done:
   i2m_free(&cnt);
   i2m_free(&cand);
   i2m_free(&pc);
-  i2m_free(&c);
   i2m_free(&big);
   i2m_free(&main_piece);
   i2m_free(&area);

@@ -18,6 +18,9 @@ typedef struct {
 
 static inline tet_info_t *tinfo(const i2m_dt_t *dt, uint32_t t) { return (tet_info_t *)i2m_dt_payload(dt, t); }
 
+/** Does tet t belong to the output mesh (alive, labelled)? */
+static inline bool tet_kept(const i2m_dt_t *dt, uint32_t t) { return i2m_dt_alive(dt, t) && tinfo(dt, t)->label != 0; }
+
 /** A tet's circumcentre (world), squared circumradius (INFINITY when flat), label, and the
  *  interface point closest to the centre (probe.d2 is +inf when it lies beyond the probe's
  *  reach, see tet_probe, or the tet is flat). */

@@ -35,10 +35,12 @@ typedef enum {
 #define I2M_UNLIKELY(x) __builtin_expect(!!(x), 0)
 #define I2M_NOINLINE __attribute__((noinline))
 #define I2M_PREFETCH(addr) __builtin_prefetch(addr)
+#define I2M_PREFETCH_WRITE(addr) __builtin_prefetch(addr, 1)
 #define I2M_INLINE inline __attribute__((always_inline)) /* hot-path helpers the compiler would call */
 #else
 #define I2M_INLINE inline
 #define I2M_PREFETCH(addr) ((void)0)
+#define I2M_PREFETCH_WRITE(addr) ((void)0)
 #define I2M_NOINLINE
 #define I2M_PRINTF(f, a)
 #define I2M_LIKELY(x) (x)

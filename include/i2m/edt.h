@@ -99,6 +99,15 @@ typedef struct {
  *  One change of frame and one voxel lookup.  Thread safe. */
 void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, i2m_edt_probe_t *out);
 
+/** Prefetching for callers that probe many points: the words a probe reads lie at random in
+ *  a large array, so loading them for every point first lets the loads overlap.
+ *  i2m_edt_prefetch_world starts loading the word of the voxel that holds world point p and
+ *  returns its index (-1 outside K, where a probe reads none); once that word has arrived,
+ *  i2m_edt_prefetch_feature starts loading the words around the voxel it names, which the
+ *  closest-point search reads. */
+int64_t i2m_edt_prefetch_world(const i2m_edt_t *e, const double p[3]);
+void i2m_edt_prefetch_feature(const i2m_edt_t *e, int64_t idx);
+
 /** Along the segment a -> b (world coordinates) whose end labels differ, a point where the
  *  label changes from a's, to within @p tol: returns it in x and the labels on its two
  *  sides.  Thread safe. */

@@ -175,7 +175,15 @@ static I2M_INLINE i2m_dt_status_t cavity_push(i2m_dt_ctx_t *ctx, uint32_t t, con
   if (I2M_UNLIKELY(ctx->ncav == ctx->cap_cav) && ctx_cavity_room(ctx, ctx->ncav + 1) != I2M_OK) return I2M_DT_FULL;
   memcpy(ctx->cavl + 4 * (size_t)ctx->ncav, l, 4 * sizeof *l);
   ctx->cav[ctx->ncav++] = t;
-  meta_store(ctx->dt, t, i2m_dt_meta(ctx->dt, t) | I2M_TM_MARK);
+  i2m_dt_t *dt = ctx->dt;
+  meta_store(dt, t, i2m_dt_meta(dt, t) | I2M_TM_MARK);
+  /* the search visits t's neighbours later: their words start loading now */
+  const uint32_t *tn = dt->tn + 4 * (size_t)t;
+  for (int i = 0; i < 4; i++) {
+    if (tn[i] == I2M_DT_NONE) continue;
+    I2M_PREFETCH(&dt->meta[tn[i] >> 2]);
+    I2M_PREFETCH(dt->tv + 4 * (size_t)(tn[i] >> 2));
+  }
   return I2M_DT_OK;
 }
 
@@ -201,7 +209,10 @@ static I2M_INLINE i2m_dt_status_t cavity_visit(i2m_dt_ctx_t *ctx, uint32_t k, ui
   }
   const int64_t lw = local_vertex(ctx, uv[j], p);
   if (I2M_UNLIKELY(lw < 0)) return lw == -1 ? I2M_DT_ROLLBACK : I2M_DT_FULL;
-  if (conflict_across(ctx, cl, i, (uint32_t)lw, p, gid) >= 0) return boundary_push(ctx, k << 2 | i, n);
+  if (conflict_across(ctx, cl, i, (uint32_t)lw, p, gid) >= 0) {
+    I2M_PREFETCH_WRITE(&dt->tn[n]); /* the refill links the outside tet back to its new neighbour */
+    return boundary_push(ctx, k << 2 | i, n);
+  }
   if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
   if (row_is_origin(ctx, (uint32_t)lw)) return I2M_DT_DUPLICATE;
   uint32_t ul[4] = {local_of(dt, uv[0]), local_of(dt, uv[1]), local_of(dt, uv[2]), local_of(dt, uv[3])};

@@ -477,6 +477,29 @@ void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, i
   out->d2 = i2m_dist2(p, out->z);
 }
 
+int64_t i2m_edt_prefetch_world(const i2m_edt_t *e, const double p[3])
+{
+  double u[3];
+  affine3(e->w2k, p, u);
+  for (int k = 0; k < 3; k++)
+    if (!(u[k] >= 0.0 && u[k] < (double)e->m[k])) return -1;
+  const int64_t idx = ((int64_t)u[2] * e->m[1] + (int64_t)u[1]) * e->m[0] + (int64_t)u[0];
+  I2M_PREFETCH(&e->ft[idx]);
+  return idx;
+}
+
+void i2m_edt_prefetch_feature(const i2m_edt_t *e, int64_t idx)
+{
+  if (idx < 0 || e->nboundary == 0) return;
+  const int64_t f = i2m_edt_feature(e, idx), s1 = e->m[0], s2 = e->m[0] * e->m[1], n = s2 * e->m[2];
+  const int32_t *w = e->ft;
+  I2M_PREFETCH(&w[f]); /* (and its neighbours along the row, nearly always on the same line) */
+  if (f >= s1) I2M_PREFETCH(&w[f - s1]);
+  if (f + s1 < n) I2M_PREFETCH(&w[f + s1]);
+  if (f >= s2) I2M_PREFETCH(&w[f - s2]);
+  if (f + s2 < n) I2M_PREFETCH(&w[f + s2]);
+}
+
 void i2m_edt_bisect(const i2m_edt_t *e, const double a[3], const double b[3], double tol, double x[3],
                     int *label_a, int *label_b)
 {

@@ -29,6 +29,7 @@ typedef struct {
   double r2;
   int label;
   i2m_edt_probe_t probe;
+  int64_t voxel; /* the voxel word the probe reads first (prefetching; -1: none) */
 } tet_geom_t;
 
 /** A bad element: a tet, its meta when recorded (stale once the tet changes) and its

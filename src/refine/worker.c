@@ -60,6 +60,19 @@ i2m_err_t worker_push(i2m_refine_worker_t *w, uint32_t t)
   return push_classified(w, t, &g);
 }
 
+/* Starts loading what the rules read of tet t besides its own words: its neighbours' labels
+ * (the facet rules) and its vertices' kinds and patches (R1's spacing test, R5/R6). */
+static void prefetch_rule_inputs(const i2m_refine_t *r, uint32_t t)
+{
+  const i2m_dt_t *dt = r->dt;
+  const uint32_t *tn = dt->tn + 4 * (size_t)t, *v = dt->tv + 4 * (size_t)t;
+  for (int i = 0; i < 4; i++) {
+    if (tn[i] != I2M_DT_NONE) I2M_PREFETCH(tinfo(dt, tn[i] >> 2));
+    I2M_PREFETCH(&dt->vkind[v[i]]);
+    if (v[i] < r->surf.cap_next) I2M_PREFETCH(&r->surf.tag[v[i]]); /* (tags exist for the grid's vertices) */
+  }
+}
+
 /* The new tets: first every label (the facet rules compare neighbours'), then the rules. */
 i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, uint32_t n)
 {
@@ -68,8 +81,19 @@ i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, u
     I2M_CALL(i2m_realloc(cap, sizeof *w->geom, &w->geom));
     w->cap_geom = cap;
   }
+  /* three passes, so that the probes' random loads overlap: the centres (and the first voxel
+   * word of each probe is requested), the feature voxels named there (their neighbourhoods
+   * are requested), then the probes and labels */
+  const i2m_edt_t *edt = w->r->edt;
   for (uint32_t k = 0; k < n; k++) {
-    tet_geom(w->r, newt[k], PROBE_NEW, &w->geom[k]);
+    tet_geom_t *g = &w->geom[k];
+    tet_centre(w->r, newt[k], g);
+    g->voxel = isfinite(g->r2) ? i2m_edt_prefetch_world(edt, g->cc) : -1;
+    prefetch_rule_inputs(w->r, newt[k]);
+  }
+  for (uint32_t k = 0; k < n; k++) i2m_edt_prefetch_feature(edt, w->geom[k].voxel);
+  for (uint32_t k = 0; k < n; k++) {
+    tet_probe(w->r, newt[k], PROBE_NEW, &w->geom[k]);
     tinfo(w->r->dt, newt[k])->label = (uint16_t)w->geom[k].label;
   }
   for (uint32_t k = 0; k < n; k++) I2M_CALL(push_classified(w, newt[k], &w->geom[k]));

@@ -219,6 +219,20 @@ static I2M_INLINE i2m_dt_status_t cavity_visit(i2m_dt_ctx_t *ctx, uint32_t k, ui
   return cavity_push(ctx, u, ul);
 }
 
+/* Requests the words of the vertices across the faces of cavity tet t (their lock words and
+ * coordinates, which the visits read), a tet before they are visited: the neighbours' vertex
+ * lists, requested when t joined, have arrived by then. */
+static I2M_INLINE void prefetch_apexes(const i2m_dt_t *dt, uint32_t t)
+{
+  const uint32_t *tn = dt->tn + 4 * (size_t)t;
+  for (int i = 0; i < 4; i++) {
+    if (tn[i] == I2M_DT_NONE) continue;
+    const uint32_t w = dt->tv[tn[i]]; /* 4u + j: vertex j of neighbour u, its apex */
+    I2M_PREFETCH(&dt->vlock[w]);
+    I2M_PREFETCH(dt->xyzw + 4 * (size_t)w);
+  }
+}
+
 /* Breadth-first search of the tets whose circumballs hold p, from a seed in conflict.  Every
  * vertex met gets a local number (and, in threaded runs, is locked); the outside tets'
  * apexes are locked too, as the new tets' neighbours will change. */
@@ -228,6 +242,7 @@ static I2M_INLINE i2m_dt_status_t cavity_search_in(i2m_dt_ctx_t *ctx, const doub
     const uint32_t c = ctx->cav[k];
     uint32_t cl[4];
     memcpy(cl, ctx->cavl + 4 * (size_t)k, sizeof cl);
+    if (k + 1 < ctx->ncav) prefetch_apexes(ctx->dt, ctx->cav[k + 1]);
     i2m_dt_status_t st;
     if ((st = cavity_visit(ctx, k, c, cl, 0, p, gid, zoned)) != I2M_DT_OK) return st;
     if ((st = cavity_visit(ctx, k, c, cl, 1, p, gid, zoned)) != I2M_DT_OK) return st;

@@ -479,6 +479,7 @@ void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, i
 
 int64_t i2m_edt_prefetch_world(const i2m_edt_t *e, const double p[3])
 {
+  if (e->nboundary == 0) return -1; /* (the probe reads nothing) */
   double u[3];
   affine3(e->w2k, p, u);
   for (int k = 0; k < 3; k++)
@@ -490,7 +491,7 @@ int64_t i2m_edt_prefetch_world(const i2m_edt_t *e, const double p[3])
 
 void i2m_edt_prefetch_feature(const i2m_edt_t *e, int64_t idx)
 {
-  if (idx < 0 || e->nboundary == 0) return;
+  if (idx < 0) return;
   const int64_t f = i2m_edt_feature(e, idx), s1 = e->m[0], s2 = e->m[0] * e->m[1], n = s2 * e->m[2];
   const int32_t *w = e->ft;
   I2M_PREFETCH(&w[f]); /* (and its neighbours along the row, nearly always on the same line) */

@@ -11,8 +11,11 @@
  * A fragment is a face-connected component of one label in the mesh (a piece) of at most
  * FRAGMENT_MAX_TETS tets and less than FRAGMENT_MAX_VOXELS voxels of volume, that lies in a
  * component of the image (6-connected voxels of its label) of at least
- * FRAGMENT_MIN_IMAGE_VOXELS voxels: so small a piece cannot be what the mesh makes of that
- * component, which other pieces represent.  A piece of a small image component (a speck
+ * FRAGMENT_MIN_IMAGE_VOXELS voxels and holds less than 1/FRAGMENT_COMPONENT_SHARE of that
+ * component's volume: so small a piece cannot be what the mesh makes of that component,
+ * which other pieces represent.  (Thin structures such as the knee's cartilage and ligaments,
+ * one or two voxels thick, leave islands of 1 to 20 voxels where the mesh cannot follow a
+ * neck.)  A piece of a small image component (a speck
  * the image really has) is kept, and so is the largest piece of a label that has no large one.
  * Relabelling removes the fragment's faces with the new label from the interfaces and
  * changes the label pair of its other interface faces, which keep their geometry: every
@@ -27,8 +30,9 @@
 #include <stdlib.h>
 
 #define FRAGMENT_MAX_TETS 64
-#define FRAGMENT_MAX_VOXELS 1.0
+#define FRAGMENT_MAX_VOXELS 27.0
 #define FRAGMENT_MIN_IMAGE_VOXELS 64
+#define FRAGMENT_COMPONENT_SHARE 8.0 /* a fragment holds less than 1/8 of its image component */
 
 /* ---- union-find over tet slots ---- */
 
@@ -242,14 +246,16 @@ i2m_err_t i2m_refine_repair_fragments(i2m_refine_t *r)
     const int l = pc[k].label;
     if (!big[l] && (main_piece[l] < 0 || pc[k].volume > pc[main_piece[l]].volume)) main_piece[l] = (int64_t)k;
   }
-  const double max_volume = FRAGMENT_MAX_VOXELS * r->img->spacing[0] * r->img->spacing[1] * r->img->spacing[2];
+  const double voxel_volume = r->img->spacing[0] * r->img->spacing[1] * r->img->spacing[2];
+  const double max_volume = FRAGMENT_MAX_VOXELS * voxel_volume;
   const double t2 = i2m_wtime();
   if (np > 0) I2M_CALL_GOTO(err, done, i2m_edt_components(r->edt, &ic));
   const double t3 = i2m_wtime();
   for (size_t k = 0; k < np; k++) {
     const piece_t *p = &pc[k];
     if (p->volume >= max_volume || main_piece[p->label] == (int64_t)k) continue;
-    if (piece_image_voxels(r, &ic, cand, p) < FRAGMENT_MIN_IMAGE_VOXELS) continue;
+    const int64_t iv = piece_image_voxels(r, &ic, cand, p);
+    if (iv < FRAGMENT_MIN_IMAGE_VOXELS || p->volume * FRAGMENT_COMPONENT_SHARE >= (double)iv * voxel_volume) continue;
     const int m = best_neighbour_label(dt, cand + p->start, p->n, nlabels, area);
     for (uint32_t i = 0; i < p->n; i++) tinfo(dt, (uint32_t)cand[p->start + i])->label = (uint16_t)m;
     r->fragments++;

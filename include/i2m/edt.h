@@ -99,14 +99,20 @@ typedef struct {
  *  One change of frame and one voxel lookup.  Thread safe. */
 void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, i2m_edt_probe_t *out);
 
+/** The coordinates u of world point p in the transform's voxel frame (voxel v of K spans
+ *  [v, v + 1) along each axis), where every probe starts. */
+void i2m_edt_world_to_k(const i2m_edt_t *e, const double p[3], double u[3]);
+
+/** i2m_edt_probe_world at p, whose voxel-frame coordinates u are known already. */
+void i2m_edt_probe_k(const i2m_edt_t *e, const double p[3], const double u[3], double max_d2, i2m_edt_probe_t *out);
+
 /** Prefetching for callers that probe many points: the words a probe reads lie at random in
- *  a large array, so loading them for every point first lets the loads overlap.
- *  i2m_edt_prefetch_world starts loading the word of the voxel that holds world point p and
- *  returns its index (-1 outside K, where a probe reads none); once that word has arrived,
- *  i2m_edt_prefetch_feature starts loading the words around the voxel it names, which the
- *  closest-point search reads. */
-int64_t i2m_edt_prefetch_world(const i2m_edt_t *e, const double p[3]);
-void i2m_edt_prefetch_feature(const i2m_edt_t *e, int64_t idx);
+ *  a large array, so requesting them for every point first lets the loads overlap.
+ *  i2m_edt_prefetch requests the word of the voxel that holds u (voxel frame); once that word
+ *  has arrived, i2m_edt_prefetch_feature requests the words around the voxel it names, which
+ *  the closest-point search reads.  Nothing outside K (or for NaN). */
+void i2m_edt_prefetch(const i2m_edt_t *e, const double u[3]);
+void i2m_edt_prefetch_feature(const i2m_edt_t *e, const double u[3]);
 
 /** Along the segment a -> b (world coordinates) whose end labels differ, a point where the
  *  label changes from a's, to within @p tol: returns it in x and the labels on its two

@@ -177,12 +177,13 @@ void i2m_refine_release_mesh(i2m_refine_t *r);
 
 /** After refinement: gives every fragment the label it shares the most face area with (0:
  *  it leaves the mesh).  A fragment is a face-connected piece of one label of at most 64 tets
- *  and less than a voxel of volume, inside a component of the image (6-connected voxels of
- *  that label) of at least 64 voxels: a bit of a larger region left apart from it where the
- *  region narrows below delta, floating or hanging by an edge (a loose body or a hinge in a
- *  finite-element model).  Specks the image really has stay.  Interface triangles are only
- *  removed or relabelled, so every guarantee holds.  Uses the transform (still alive); the
- *  same result on any number of threads; counted in the stats. */
+ *  and less than 27 voxels of volume, inside a component of the image (6-connected voxels of
+ *  that label) of at least 64 voxels of which it holds less than an eighth: a bit of a larger
+ *  region left apart from it where the region narrows below delta, floating or hanging by an
+ *  edge (a loose body or a hinge in a finite-element model).  Specks the image really has
+ *  stay.  Interface triangles are only removed or relabelled, so every guarantee holds.  Uses
+ *  the transform (still alive); the same result on any number of threads; counted in the
+ *  stats. */
 i2m_err_t i2m_refine_repair_fragments(i2m_refine_t *r);
 
 /** The labelled mesh: tets whose circumcentre is inside, with their label value, and the

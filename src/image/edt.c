@@ -318,11 +318,22 @@ static inline void k_to_grid(const i2m_edt_t *e, const double u[3], double g[3])
   for (int a = 0; a < 3; a++) g[a] = (u[a] + (double)e->lo[a] - 0.5) * e->img->spacing[a];
 }
 
+/* The voxel of K (box coordinates c) that holds u; false outside K (or NaN), where every
+ * label is 0. */
+static inline bool voxel_k(const i2m_edt_t *e, const double u[3], int64_t c[3])
+{
+  for (int a = 0; a < 3; a++) {
+    if (!(u[a] >= 0.0 && u[a] < (double)e->m[a])) return false;
+    c[a] = (int64_t)u[a];
+  }
+  return true;
+}
+
 static int label_k(const i2m_edt_t *e, const double u[3])
 {
-  for (int a = 0; a < 3; a++)
-    if (!(u[a] >= 0.0 && u[a] < (double)e->m[a])) return 0; /* outside K (or NaN): background */
-  return i2m_edt_label_voxel(e, e->lo[0] + (int64_t)u[0], e->lo[1] + (int64_t)u[1], e->lo[2] + (int64_t)u[2]);
+  int64_t c[3];
+  if (!voxel_k(e, u, c)) return 0;
+  return i2m_edt_label_voxel(e, e->lo[0] + c[0], e->lo[1] + c[1], e->lo[2] + c[2]);
 }
 
 int i2m_edt_label_at(const i2m_edt_t *e, const double g[3])
@@ -343,12 +354,12 @@ bool i2m_edt_voxel_at_world(const i2m_edt_t *e, const double w[3], int64_t v[3])
 {
   double u[3];
   affine3(e->w2k, w, u);
-  for (int a = 0; a < 3; a++) {
-    if (!(u[a] >= 0.0 && u[a] < (double)e->m[a])) return false; /* the rule of label_k */
-    v[a] = e->lo[a] + (int64_t)u[a];
-  }
+  if (!voxel_k(e, u, v)) return false;
+  for (int a = 0; a < 3; a++) v[a] += e->lo[a];
   return true;
 }
+
+void i2m_edt_world_to_k(const i2m_edt_t *e, const double w[3], double u[3]) { affine3(e->w2k, w, u); }
 
 /* A row of K's labels for i2m_components_build: the words' high bits when packed. */
 static void k_row(const void *ctx, int64_t i0, int64_t j, int64_t k, int64_t n, uint16_t *out)
@@ -464,12 +475,18 @@ double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, dou
 
 void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, i2m_edt_probe_t *out)
 {
+  double u[3];
+  affine3(e->w2k, p, u);
+  i2m_edt_probe_k(e, p, u, max_d2, out);
+}
+
+void i2m_edt_probe_k(const i2m_edt_t *e, const double p[3], const double u[3], double max_d2, i2m_edt_probe_t *out)
+{
   out->label = 0;
   out->d2 = INFINITY;
   out->pair[0] = out->pair[1] = 0;
   if (e->nboundary == 0) return; /* no foreground: background everywhere */
-  double u[3], zk[3] = {0, 0, 0};
-  affine3(e->w2k, p, u);
+  double zk[3] = {0, 0, 0};
   const double d2 = e->labels_packed ? probe_k_in(e, u, max_d2, &out->label, zk, out->pair, true) /* (hot: inlined) */
                                      : probe_k_in(e, u, max_d2, &out->label, zk, out->pair, false);
   if (!(d2 < INFINITY)) return;
@@ -477,22 +494,19 @@ void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, i
   out->d2 = i2m_dist2(p, out->z);
 }
 
-int64_t i2m_edt_prefetch_world(const i2m_edt_t *e, const double p[3])
+void i2m_edt_prefetch(const i2m_edt_t *e, const double u[3])
 {
-  if (e->nboundary == 0) return -1; /* (the probe reads nothing) */
-  double u[3];
-  affine3(e->w2k, p, u);
-  for (int k = 0; k < 3; k++)
-    if (!(u[k] >= 0.0 && u[k] < (double)e->m[k])) return -1;
-  const int64_t idx = ((int64_t)u[2] * e->m[1] + (int64_t)u[1]) * e->m[0] + (int64_t)u[0];
-  I2M_PREFETCH(&e->ft[idx]);
-  return idx;
+  int64_t c[3];
+  if (e->nboundary == 0 || !voxel_k(e, u, c)) return; /* (the probe reads no word there) */
+  I2M_PREFETCH(&e->ft[(c[2] * e->m[1] + c[1]) * e->m[0] + c[0]]);
 }
 
-void i2m_edt_prefetch_feature(const i2m_edt_t *e, int64_t idx)
+void i2m_edt_prefetch_feature(const i2m_edt_t *e, const double u[3])
 {
-  if (idx < 0) return;
-  const int64_t f = i2m_edt_feature(e, idx), s1 = e->m[0], s2 = e->m[0] * e->m[1], n = s2 * e->m[2];
+  int64_t c[3];
+  if (e->nboundary == 0 || !voxel_k(e, u, c)) return;
+  const int64_t f = i2m_edt_feature(e, (c[2] * e->m[1] + c[1]) * e->m[0] + c[0]);
+  const int64_t s1 = e->m[0], s2 = e->m[0] * e->m[1], n = s2 * e->m[2];
   const int32_t *w = e->ft;
   I2M_PREFETCH(&w[f]); /* (and its neighbours along the row, nearly always on the same line) */
   if (f >= s1) I2M_PREFETCH(&w[f - s1]);

@@ -15,11 +15,11 @@
  * component's volume: so small a piece cannot be what the mesh makes of that component,
  * which other pieces represent.  (Thin structures such as the knee's cartilage and ligaments,
  * one or two voxels thick, leave islands of 1 to 20 voxels where the mesh cannot follow a
- * neck.)  A piece of a small image component (a speck
- * the image really has) is kept, and so is the largest piece of a label that has no large one.
- * Relabelling removes the fragment's faces with the new label from the interfaces and
- * changes the label pair of its other interface faces, which keep their geometry: every
- * facet-angle and distance guarantee still holds.
+ * neck.)  A piece of a small image component (a speck the image really has) is kept, and so
+ * is the largest piece of a label that has no large one.  Relabelling removes the fragment's
+ * faces with the new label from the interfaces and changes the label pair of its other
+ * interface faces, which keep their geometry: every facet-angle and distance guarantee still
+ * holds.
  *
  * Pieces come from a union-find over the tet slots, in parallel (compare-and-swap links,
  * always from the larger root to the smaller, so every piece ends with its smallest slot as
@@ -184,7 +184,13 @@ static i2m_err_t small_pieces(const i2m_dt_t *dt, const uint64_t *cand, size_t n
   size_t k = 0;
   while (k < ncand) {
     const uint32_t root = (uint32_t)(cand[k] >> 32);
-    if (np % 256 == 0) I2M_CALL(i2m_realloc(np + 256, sizeof *pc, &pc));
+    if (np % 256 == 0) {
+      i2m_err_t err = i2m_realloc(np + 256, sizeof *pc, &pc);
+      if (err != I2M_OK) {
+        i2m_free(&pc);
+        return err;
+      }
+    }
     piece_t *p = &pc[np++];
     *p = (piece_t){(uint32_t)k, 0, tinfo(dt, (uint32_t)cand[k])->label, 0.0};
     for (; k < ncand && (uint32_t)(cand[k] >> 32) == root; k++) {

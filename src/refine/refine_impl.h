@@ -28,8 +28,8 @@ typedef struct {
   double cc[3];
   double r2;
   int label;
+  double u[3]; /* cc in the transform's voxel frame, where the probe starts (NaN: flat) */
   i2m_edt_probe_t probe;
-  int64_t voxel; /* the voxel word the probe reads first (prefetching; -1: none) */
 } tet_geom_t;
 
 /** A bad element: a tet, its meta when recorded (stale once the tet changes) and its
@@ -190,7 +190,8 @@ typedef enum {
 
 /** Circumcentre, radius, label and (as asked) what the image says about tet t's centre. */
 void tet_geom(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g);
-/** tet_geom in two steps: the centre and radius (INFINITY when flat), then the rest. */
+/** tet_geom in two steps: the centre and radius (INFINITY when flat) with the centre's
+ *  voxel-frame coordinates, then the rest. */
 void tet_centre(const i2m_refine_t *r, uint32_t t, tet_geom_t *g);
 void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g);
 /** The list a tet (PROBE_NEW or PROBE_CLOSEST) belongs to, or -1.  R1's spacing test looks

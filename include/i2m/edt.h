@@ -100,19 +100,48 @@ typedef struct {
 void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, i2m_edt_probe_t *out);
 
 /** The coordinates u of world point p in the transform's voxel frame (voxel v of K spans
- *  [v, v + 1) along each axis), where every probe starts. */
-void i2m_edt_world_to_k(const i2m_edt_t *e, const double p[3], double u[3]);
+ *  [v, v + 1) along each axis), where every probe starts.  Inline: the refinement asks it
+ *  for every tet it creates. */
+static inline void i2m_edt_world_to_k(const i2m_edt_t *e, const double p[3], double u[3])
+{
+  for (int k = 0; k < 3; k++) u[k] = e->w2k[k][0] * p[0] + e->w2k[k][1] * p[1] + e->w2k[k][2] * p[2] + e->w2k[k][3];
+}
 
-/** i2m_edt_probe_world at p, whose voxel-frame coordinates u are known already. */
-void i2m_edt_probe_k(const i2m_edt_t *e, const double p[3], const double u[3], double max_d2, i2m_edt_probe_t *out);
+/** Box-linear index of the voxel of K that holds u (voxel frame), or -1 outside K (or NaN). */
+static inline int64_t i2m_edt_voxel_k(const i2m_edt_t *e, const double u[3])
+{
+  if (!(u[0] >= 0.0 && u[0] < (double)e->m[0] && u[1] >= 0.0 && u[1] < (double)e->m[1] && u[2] >= 0.0 &&
+        u[2] < (double)e->m[2]))
+    return -1;
+  return ((int64_t)u[2] * e->m[1] + (int64_t)u[1]) * e->m[0] + (int64_t)u[0];
+}
+
+/** i2m_edt_probe_world at p, whose voxel-frame coordinates u and voxel index vox =
+ *  i2m_edt_voxel_k(e, u) are known already. */
+void i2m_edt_probe_k(const i2m_edt_t *e, const double p[3], const double u[3], int64_t vox, double max_d2,
+                     i2m_edt_probe_t *out);
 
 /** Prefetching for callers that probe many points: the words a probe reads lie at random in
  *  a large array, so requesting them for every point first lets the loads overlap.
- *  i2m_edt_prefetch requests the word of the voxel that holds u (voxel frame); once that word
- *  has arrived, i2m_edt_prefetch_feature requests the words around the voxel it names, which
- *  the closest-point search reads.  Nothing outside K (or for NaN). */
-void i2m_edt_prefetch(const i2m_edt_t *e, const double u[3]);
-void i2m_edt_prefetch_feature(const i2m_edt_t *e, const double u[3]);
+ *  i2m_edt_prefetch requests the word of voxel vox (i2m_edt_voxel_k); once that word has
+ *  arrived, i2m_edt_prefetch_feature requests the words around the voxel it names, which the
+ *  closest-point search reads.  Nothing for vox < 0 (outside K). */
+static inline void i2m_edt_prefetch(const i2m_edt_t *e, int64_t vox)
+{
+  if (vox >= 0) I2M_PREFETCH(&e->ft[vox]);
+}
+
+static inline void i2m_edt_prefetch_feature(const i2m_edt_t *e, int64_t vox)
+{
+  if (vox < 0) return;
+  const int64_t f = i2m_edt_feature(e, vox), s1 = e->m[0], s2 = e->m[0] * e->m[1], n = s2 * e->m[2];
+  const int32_t *w = e->ft;
+  I2M_PREFETCH(&w[f]); /* (and its neighbours along the row, nearly always on the same line) */
+  if (f >= s1) I2M_PREFETCH(&w[f - s1]);
+  if (f + s1 < n) I2M_PREFETCH(&w[f + s1]);
+  if (f >= s2) I2M_PREFETCH(&w[f - s2]);
+  if (f + s2 < n) I2M_PREFETCH(&w[f + s2]);
+}
 
 /** Along the segment a -> b (world coordinates) whose end labels differ, a point where the
  *  label changes from a's, to within @p tol: returns it in x and the labels on its two

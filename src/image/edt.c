@@ -359,8 +359,6 @@ bool i2m_edt_voxel_at_world(const i2m_edt_t *e, const double w[3], int64_t v[3])
   return true;
 }
 
-void i2m_edt_world_to_k(const i2m_edt_t *e, const double w[3], double u[3]) { affine3(e->w2k, w, u); }
-
 /* A row of K's labels for i2m_components_build: the words' high bits when packed. */
 static void k_row(const void *ctx, int64_t i0, int64_t j, int64_t k, int64_t n, uint16_t *out)
 {
@@ -386,44 +384,51 @@ static inline int box_label(const i2m_edt_t *e, int64_t idx, const int64_t c[3],
   return i2m_image_label_voxel(e->img, e->lo[0] + c[0], e->lo[1] + c[1], e->lo[2] + c[2]);
 }
 
-/* Label of the neighbour of box voxel f (box coordinates fb) one step along axis ax in
- * direction dir: from the next word when the labels are packed (nearly always). */
-static inline int neighbour_label(const i2m_edt_t *e, uint32_t f, const uint32_t fb[3], int ax, int dir,
-                                  const int64_t stride[3], bool packed)
+/* The voxel of K nearest to u (u clamped into K; NaN counts as below), its box coordinates c
+ * and index; *inside tells whether u lies in it. */
+static int64_t voxel_clamped(const i2m_edt_t *e, const double u[3], int64_t c[3], bool *inside)
 {
-  const int64_t nb = (int64_t)fb[ax] + dir;
-  if (nb < 0 || nb >= e->m[ax]) return 0;
-  if (packed) return (int)((uint32_t)e->ft[(int64_t)f + dir * stride[ax]] >> e->label_shift);
-  int64_t c[3] = {e->lo[0] + fb[0], e->lo[1] + fb[1], e->lo[2] + fb[2]};
-  c[ax] += dir;
-  return i2m_image_label_voxel(e->img, c[0], c[1], c[2]);
-}
-
-/* The probe at u: its label (when @p label is not NULL) and, unless the feature voxel of its
- * voxel (of its projection on K, for u outside K) lies farther than sqrt(max_d2), the closest
- * point zk on the faces between that voxel and its differently labelled neighbours, with the
- * pair.  Returns INFINITY when zk was not computed.  One word gives the label and the
- * feature; the distance from u to the feature voxel bounds every face point's from below.
- * Inlined with packed = e->labels_packed as a constant. */
-static I2M_INLINE double probe_k_in(const i2m_edt_t *e, const double u[3], double max_d2, int *label, double zk[3],
-                                    int pair[2], bool packed)
-{
-  const double *s = e->img->spacing;
-  const int64_t *m = e->m;
-  int64_t c[3];
-  bool inside = true;
+  *inside = true;
   for (int k = 0; k < 3; k++) {
     if (!(u[k] >= 0.0)) { /* (NaN too) */
       c[k] = 0;
-      inside = false;
-    } else if (u[k] >= (double)m[k]) {
-      c[k] = m[k] - 1;
-      inside = false;
+      *inside = false;
+    } else if (u[k] >= (double)e->m[k]) {
+      c[k] = e->m[k] - 1;
+      *inside = false;
     } else {
       c[k] = (int64_t)u[k];
     }
   }
-  const int64_t idx = (c[2] * m[1] + c[1]) * m[0] + c[0];
+  return (c[2] * e->m[1] + c[1]) * e->m[0] + c[0];
+}
+
+/* Label of the neighbour of box voxel f (box coordinates fb) at box-linear offset off, or 0
+ * when that neighbour lies outside K (!within): from the next word when the labels are packed
+ * (nearly always), else from the image at box coordinates nc. */
+static inline int neighbour_label(const i2m_edt_t *e, uint32_t f, int64_t off, bool within, const int64_t nc[3],
+                                  bool packed)
+{
+  if (!within) return 0;
+  if (packed) return (int)((uint32_t)e->ft[(int64_t)f + off] >> e->label_shift);
+  return i2m_image_label_voxel(e->img, e->lo[0] + nc[0], e->lo[1] + nc[1], e->lo[2] + nc[2]);
+}
+
+/* The probe at u (in voxel vox of K, or vox < 0 when u lies outside K or is NaN): its label
+ * (when @p label is not NULL) and, unless the feature voxel of its voxel (of its projection
+ * on K, for u outside K) lies farther than sqrt(max_d2), the closest point zk on the faces
+ * between that voxel and its differently labelled neighbours, with the pair.  Returns
+ * INFINITY when zk was not computed.  One word gives the label and the feature; the distance
+ * from u to the feature voxel bounds every face point's from below.  Inlined with packed =
+ * e->labels_packed as a constant. */
+static I2M_INLINE double probe_k_in(const i2m_edt_t *e, const double u[3], int64_t vox, double max_d2, int *label,
+                                    double zk[3], int pair[2], bool packed)
+{
+  const double *s = e->img->spacing;
+  const int64_t *m = e->m;
+  int64_t c[3] = {0, 0, 0}, idx = vox;
+  bool inside = vox >= 0;
+  if (!inside || !packed) idx = voxel_clamped(e, u, c, &inside); /* (the image's labels need c) */
   if (label) *label = inside ? box_label(e, idx, c, packed) : 0;
   const uint32_t f = i2m_edt_feature(e, idx);
   uint32_t fb[3];
@@ -440,7 +445,10 @@ static I2M_INLINE double probe_k_in(const i2m_edt_t *e, const double u[3], doubl
   double best = INFINITY;
   for (int ax = 0; ax < 3; ax++)
     for (int dir = -1; dir <= 1; dir += 2) {
-      const int ln = neighbour_label(e, f, fb, ax, dir, stride, packed);
+      const bool within = dir < 0 ? fb[ax] > 0 : (int64_t)fb[ax] + 1 < m[ax];
+      int64_t nc[3] = {fc[0], fc[1], fc[2]};
+      nc[ax] += dir;
+      const int ln = neighbour_label(e, f, dir * stride[ax], within, nc, packed);
       if (ln == lb) continue;
       double q[3] = {q0[0], q0[1], q0[2]};
       q[ax] = (double)fb[ax] + (dir > 0 ? 1.0 : 0.0);
@@ -466,8 +474,9 @@ double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, dou
   }
   double u[3], zk[3] = {0, 0, 0};
   grid_to_k(e, p, u);
-  const double d2 = e->labels_packed ? probe_k_in(e, u, max_d2, NULL, zk, pair, true)
-                                     : probe_k_in(e, u, max_d2, NULL, zk, pair, false);
+  const int64_t vox = i2m_edt_voxel_k(e, u);
+  const double d2 = e->labels_packed ? probe_k_in(e, u, vox, max_d2, NULL, zk, pair, true)
+                                     : probe_k_in(e, u, vox, max_d2, NULL, zk, pair, false);
   if (!(d2 < INFINITY)) return INFINITY;
   k_to_grid(e, zk, z);
   return i2m_dist2(p, z);
@@ -476,43 +485,23 @@ double i2m_edt_closest(const i2m_edt_t *e, const double p[3], double max_d2, dou
 void i2m_edt_probe_world(const i2m_edt_t *e, const double p[3], double max_d2, i2m_edt_probe_t *out)
 {
   double u[3];
-  affine3(e->w2k, p, u);
-  i2m_edt_probe_k(e, p, u, max_d2, out);
+  i2m_edt_world_to_k(e, p, u);
+  i2m_edt_probe_k(e, p, u, i2m_edt_voxel_k(e, u), max_d2, out);
 }
 
-void i2m_edt_probe_k(const i2m_edt_t *e, const double p[3], const double u[3], double max_d2, i2m_edt_probe_t *out)
+void i2m_edt_probe_k(const i2m_edt_t *e, const double p[3], const double u[3], int64_t vox, double max_d2,
+                     i2m_edt_probe_t *out)
 {
   out->label = 0;
   out->d2 = INFINITY;
   out->pair[0] = out->pair[1] = 0;
   if (e->nboundary == 0) return; /* no foreground: background everywhere */
   double zk[3] = {0, 0, 0};
-  const double d2 = e->labels_packed ? probe_k_in(e, u, max_d2, &out->label, zk, out->pair, true) /* (hot: inlined) */
-                                     : probe_k_in(e, u, max_d2, &out->label, zk, out->pair, false);
+  const double d2 = e->labels_packed ? probe_k_in(e, u, vox, max_d2, &out->label, zk, out->pair, true) /* (hot: inlined) */
+                                     : probe_k_in(e, u, vox, max_d2, &out->label, zk, out->pair, false);
   if (!(d2 < INFINITY)) return;
   affine3(e->k2w, zk, out->z);
   out->d2 = i2m_dist2(p, out->z);
-}
-
-void i2m_edt_prefetch(const i2m_edt_t *e, const double u[3])
-{
-  int64_t c[3];
-  if (e->nboundary == 0 || !voxel_k(e, u, c)) return; /* (the probe reads no word there) */
-  I2M_PREFETCH(&e->ft[(c[2] * e->m[1] + c[1]) * e->m[0] + c[0]]);
-}
-
-void i2m_edt_prefetch_feature(const i2m_edt_t *e, const double u[3])
-{
-  int64_t c[3];
-  if (e->nboundary == 0 || !voxel_k(e, u, c)) return;
-  const int64_t f = i2m_edt_feature(e, (c[2] * e->m[1] + c[1]) * e->m[0] + c[0]);
-  const int64_t s1 = e->m[0], s2 = e->m[0] * e->m[1], n = s2 * e->m[2];
-  const int32_t *w = e->ft;
-  I2M_PREFETCH(&w[f]); /* (and its neighbours along the row, nearly always on the same line) */
-  if (f >= s1) I2M_PREFETCH(&w[f - s1]);
-  if (f + s1 < n) I2M_PREFETCH(&w[f + s1]);
-  if (f >= s2) I2M_PREFETCH(&w[f - s2]);
-  if (f + s2 < n) I2M_PREFETCH(&w[f + s2]);
 }
 
 void i2m_edt_bisect(const i2m_edt_t *e, const double a[3], const double b[3], double tol, double x[3],

@@ -16,9 +16,11 @@ void tet_centre(const i2m_refine_t *r, uint32_t t, tet_geom_t *g)
                            &g->r2) != 0) {
     g->r2 = INFINITY;
     g->u[0] = g->u[1] = g->u[2] = NAN;
+    g->vox = -1;
     return;
   }
   i2m_edt_world_to_k(r->edt, g->cc, g->u);
+  g->vox = i2m_edt_voxel_k(r->edt, g->u);
 }
 
 void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g)
@@ -33,7 +35,7 @@ void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t 
    * action is chosen within 2 delta too (R7 keeps track of the free vertices that close to
    * an interface); the probe skips the closest point beyond that reach */
   const double reach2 = kind == PROBE_NEW || g->r2 > r->four_delta2 ? g->r2 : r->four_delta2;
-  if (kind != PROBE_CENTRE) i2m_edt_probe_k(r->edt, g->cc, g->u, reach2, &g->probe);
+  if (kind != PROBE_CENTRE) i2m_edt_probe_k(r->edt, g->cc, g->u, g->vox, reach2, &g->probe);
   g->label = kind == PROBE_NEW ? g->probe.label : tinfo(dt, t)->label;
 }
 

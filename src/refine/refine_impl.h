@@ -28,7 +28,8 @@ typedef struct {
   double cc[3];
   double r2;
   int label;
-  double u[3]; /* cc in the transform's voxel frame, where the probe starts (NaN: flat) */
+  double u[3];  /* cc in the transform's voxel frame, where the probe starts (NaN: flat) */
+  int64_t vox;  /* the voxel of the transform's box that holds u, or -1 (i2m_edt_voxel_k) */
   i2m_edt_probe_t probe;
 } tet_geom_t;
 

@@ -87,10 +87,10 @@ i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, u
   const i2m_edt_t *edt = w->r->edt;
   for (uint32_t k = 0; k < n; k++) {
     tet_centre(w->r, newt[k], &w->geom[k]);
-    i2m_edt_prefetch(edt, w->geom[k].u);
+    i2m_edt_prefetch(edt, w->geom[k].vox);
     prefetch_rule_inputs(w->r, newt[k]);
   }
-  for (uint32_t k = 0; k < n; k++) i2m_edt_prefetch_feature(edt, w->geom[k].u);
+  for (uint32_t k = 0; k < n; k++) i2m_edt_prefetch_feature(edt, w->geom[k].vox);
   for (uint32_t k = 0; k < n; k++) {
     tet_probe(w->r, newt[k], PROBE_NEW, &w->geom[k]);
     tinfo(w->r->dt, newt[k])->label = (uint16_t)w->geom[k].label;

@@ -123,6 +123,13 @@ static void test_closest_point(void)
     CU_ASSERT(d >= truth - 1e-9);          /* z is an interface point ... */
     CU_ASSERT(d <= truth + 2 * hdiag);    /* ... close to the nearest one */
     CU_ASSERT(pair[0] < pair[1]);
+    /* the refinement's probe (world frame: the same here; label and closest point at once,
+     * from the voxel index it is handed) agrees, inside and outside the box K */
+    i2m_edt_probe_t pr;
+    i2m_edt_probe_world(e, p, INFINITY, &pr);
+    CU_ASSERT(pr.label == i2m_image_label_at(img, p));
+    CU_ASSERT_DOUBLE_EQUAL(sqrt(pr.d2), d, 1e-9);
+    CU_ASSERT(pr.pair[0] == pair[0] && pr.pair[1] == pair[1]);
     /* z is on an interface of the pair it reports: both labels occur right around z (z may
      * lie on a face's edge or corner, so look at all eight nudged copies) */
     bool seen[2] = {false, false};

@@ -64,9 +64,9 @@ int i2m_edt_label_at(const i2m_edt_t *e, const double g[3]);
  *  (so the two always agree). */
 int i2m_edt_label_at_world(const i2m_edt_t *e, const double w[3]);
 
-/** The voxel (image indices) that holds world point w by the same rule; false outside K
- *  (where every label is 0). */
-bool i2m_edt_voxel_at_world(const i2m_edt_t *e, const double w[3], int64_t v[3]);
+/** The voxel (image indices) that holds the point whose voxel-frame coordinates are u
+ *  (i2m_edt_world_to_k), by the same rule; false outside K (where every label is 0). */
+bool i2m_edt_image_voxel_k(const i2m_edt_t *e, const double u[3], int64_t v[3]);
 
 /** The 6-connected components of the labels over K (which holds every labelled voxel),
  *  read from the packed words (or the image). */

@@ -318,15 +318,32 @@ static inline void k_to_grid(const i2m_edt_t *e, const double u[3], double g[3])
   for (int a = 0; a < 3; a++) g[a] = (u[a] + (double)e->lo[a] - 0.5) * e->img->spacing[a];
 }
 
+/* The voxel of K nearest to u (u clamped into K; NaN counts as below), its box coordinates c
+ * and index; *inside tells whether u lies in it. */
+static int64_t voxel_clamped(const i2m_edt_t *e, const double u[3], int64_t c[3], bool *inside)
+{
+  *inside = true;
+  for (int k = 0; k < 3; k++) {
+    if (!(u[k] >= 0.0)) { /* (NaN too) */
+      c[k] = 0;
+      *inside = false;
+    } else if (u[k] >= (double)e->m[k]) {
+      c[k] = e->m[k] - 1;
+      *inside = false;
+    } else {
+      c[k] = (int64_t)u[k];
+    }
+  }
+  return (c[2] * e->m[1] + c[1]) * e->m[0] + c[0];
+}
+
 /* The voxel of K (box coordinates c) that holds u; false outside K (or NaN), where every
  * label is 0. */
 static inline bool voxel_k(const i2m_edt_t *e, const double u[3], int64_t c[3])
 {
-  for (int a = 0; a < 3; a++) {
-    if (!(u[a] >= 0.0 && u[a] < (double)e->m[a])) return false;
-    c[a] = (int64_t)u[a];
-  }
-  return true;
+  bool inside;
+  voxel_clamped(e, u, c, &inside);
+  return inside;
 }
 
 static int label_k(const i2m_edt_t *e, const double u[3])
@@ -346,14 +363,12 @@ int i2m_edt_label_at(const i2m_edt_t *e, const double g[3])
 int i2m_edt_label_at_world(const i2m_edt_t *e, const double w[3])
 {
   double u[3];
-  affine3(e->w2k, w, u);
+  i2m_edt_world_to_k(e, w, u);
   return label_k(e, u);
 }
 
-bool i2m_edt_voxel_at_world(const i2m_edt_t *e, const double w[3], int64_t v[3])
+bool i2m_edt_image_voxel_k(const i2m_edt_t *e, const double u[3], int64_t v[3])
 {
-  double u[3];
-  affine3(e->w2k, w, u);
   if (!voxel_k(e, u, v)) return false;
   for (int a = 0; a < 3; a++) v[a] += e->lo[a];
   return true;
@@ -382,25 +397,6 @@ static inline int box_label(const i2m_edt_t *e, int64_t idx, const int64_t c[3],
 {
   if (packed) return (int)((uint32_t)e->ft[idx] >> e->label_shift);
   return i2m_image_label_voxel(e->img, e->lo[0] + c[0], e->lo[1] + c[1], e->lo[2] + c[2]);
-}
-
-/* The voxel of K nearest to u (u clamped into K; NaN counts as below), its box coordinates c
- * and index; *inside tells whether u lies in it. */
-static int64_t voxel_clamped(const i2m_edt_t *e, const double u[3], int64_t c[3], bool *inside)
-{
-  *inside = true;
-  for (int k = 0; k < 3; k++) {
-    if (!(u[k] >= 0.0)) { /* (NaN too) */
-      c[k] = 0;
-      *inside = false;
-    } else if (u[k] >= (double)e->m[k]) {
-      c[k] = e->m[k] - 1;
-      *inside = false;
-    } else {
-      c[k] = (int64_t)u[k];
-    }
-  }
-  return (c[2] * e->m[1] + c[1]) * e->m[0] + c[0];
 }
 
 /* Label of the neighbour of box voxel f (box coordinates fb) at box-linear offset off, or 0

@@ -211,10 +211,9 @@ static int64_t piece_image_voxels(const i2m_refine_t *r, const i2m_components_t 
   const i2m_edt_t *e = r->edt;
   for (uint32_t i = 0; i < p->n; i++) {
     tet_geom_t g;
-    tet_centre(r, (uint32_t)cand[p->start + i], &g);
-    if (!isfinite(g.r2)) continue;
+    tet_centre(r, (uint32_t)cand[p->start + i], &g); /* (a flat tet's u is NaN: no voxel) */
     int64_t v[3];
-    if (!i2m_edt_voxel_at_world(e, g.cc, v) || i2m_edt_label_voxel(e, v[0], v[1], v[2]) != p->label) continue;
+    if (!i2m_edt_image_voxel_k(e, g.u, v) || i2m_edt_label_voxel(e, v[0], v[1], v[2]) != p->label) continue;
     const int64_t root = i2m_components_find(ic, v[0], v[1], v[2]);
     if (root >= 0) return ic->size[root];
   }

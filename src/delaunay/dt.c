@@ -229,12 +229,13 @@ i2m_err_t ctx_cavity_room(i2m_dt_ctx_t *ctx, uint32_t need)
   return I2M_OK;
 }
 
-i2m_err_t ctx_hold_room(i2m_dt_ctx_t *ctx)
+i2m_err_t ctx_hold_room(i2m_dt_ctx_t *ctx) { return ctx_hold_reserve(ctx, ctx->nheld + 1); }
+
+i2m_err_t ctx_hold_reserve(i2m_dt_ctx_t *ctx, uint32_t need)
 {
-  uint32_t k = ctx->nheld;
-  if (k < ctx->cap_held) return I2M_OK;
-  I2M_CHECK(k < (1u << (32 - I2M_DT_OWNER_BITS)), I2M_ERR_MEMORY, "a cavity with over 4 M vertices");
-  uint32_t cap = k + k / 2 + 64;
+  if (need <= ctx->cap_held) return I2M_OK;
+  I2M_CHECK(need <= (1u << (32 - I2M_DT_OWNER_BITS)), I2M_ERR_MEMORY, "a cavity with over 4 M vertices");
+  uint32_t cap = GROW(need);
   I2M_CALL(i2m_realloc(cap, sizeof *ctx->held, &ctx->held));
   I2M_CALL(i2m_realloc(4 * (size_t)cap, sizeof *ctx->rows, &ctx->rows));
   ctx->cap_held = cap;

@@ -31,8 +31,9 @@ i2m_err_t ctx_grow_u32(uint32_t **a, uint32_t *cap, uint32_t need);
 /* Room for need cavity (or star) tets: cav[] and cavl[] grow together. */
 i2m_err_t ctx_cavity_room(i2m_dt_ctx_t *ctx, uint32_t need);
 
-/* Room for one more held vertex (held[] and rows[] grow together). */
+/* Room for one more held vertex, or for need held vertices (held[] and rows[] grow together). */
 i2m_err_t ctx_hold_room(i2m_dt_ctx_t *ctx);
+i2m_err_t ctx_hold_reserve(i2m_dt_ctx_t *ctx, uint32_t need);
 
 /* Takes the lock of vertex v for the context (re-entrant), numbering it locally (an insertion
  * makes the rows of the vertices held when it starts).  False: held by another, or out of

@@ -30,61 +30,145 @@ static i2m_dt_status_t cavity_abandon(i2m_dt_ctx_t *ctx, i2m_dt_status_t why)
   return why;
 }
 
-/* The row of local vertex k (vertex v) for point p, and the cavity's error bound grown to
- * cover it. */
+/* ---- cavity search ----
+ *
+ * The search keeps what it reads and grows in a local working set (the arrays, the counts,
+ * the error bound), so the compiler holds it in registers instead of reloading the context
+ * after every store into the mesh; it is written back when the search ends and whenever a
+ * scratch array must grow.  Room for a whole cavity tet's four faces (four more cavity tets,
+ * boundary faces and local vertices) is made before the tet is visited, so no single push
+ * checks a capacity. */
+typedef struct {
+  i2m_dt_ctx_t *ctx;
+  const double *p;
+  i2m_gidx_t gid;
+  const uint32_t *tn, *tv;
+  _Atomic uint32_t *meta, *vlock;
+  const double *xyzw;
+  double *rows, bound;
+  uint32_t *held, *cav, *cavl;
+  i2m_dt_bface_t *bnd;
+  uint32_t owner, nheld, ncav, nbnd, cap_held, cap_cav, cap_bnd;
+} search_t;
+
+static I2M_INLINE void search_load(search_t *s, i2m_dt_ctx_t *ctx)
+{
+  s->rows = ctx->rows;
+  s->bound = ctx->isp_bound;
+  s->held = ctx->held;
+  s->cav = ctx->cav;
+  s->cavl = ctx->cavl;
+  s->bnd = ctx->bnd;
+  s->nheld = ctx->nheld;
+  s->ncav = ctx->ncav;
+  s->nbnd = ctx->nbnd;
+  s->cap_held = ctx->cap_held;
+  s->cap_cav = ctx->cap_cav;
+  s->cap_bnd = ctx->cap_bnd;
+}
+
+static I2M_INLINE void search_begin(search_t *s, i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid)
+{
+  const i2m_dt_t *dt = ctx->dt;
+  s->ctx = ctx;
+  s->p = p;
+  s->gid = gid;
+  s->tn = dt->tn;
+  s->tv = dt->tv;
+  s->meta = dt->meta;
+  s->vlock = dt->vlock;
+  s->xyzw = dt->xyzw;
+  s->owner = ctx->owner;
+  search_load(s, ctx);
+}
+
+static I2M_INLINE void search_store(const search_t *s)
+{
+  s->ctx->nheld = s->nheld;
+  s->ctx->ncav = s->ncav;
+  s->ctx->nbnd = s->nbnd;
+}
+
+static I2M_NOINLINE i2m_dt_status_t boundary_grow(i2m_dt_ctx_t *ctx)
+{
+  uint32_t cap = ctx->cap_bnd + ctx->cap_bnd / 2 + 64;
+  if (i2m_realloc(cap, sizeof(i2m_dt_bface_t), &ctx->bnd) != I2M_OK) return I2M_DT_FULL;
+  ctx->cap_bnd = cap;
+  return I2M_DT_OK;
+}
+
+/* Room for need more cavity tets, boundary faces and local vertices (slow path). */
+static I2M_NOINLINE bool search_grow(search_t *s, uint32_t need)
+{
+  i2m_dt_ctx_t *ctx = s->ctx;
+  search_store(s);
+  bool ok = ctx_cavity_room(ctx, s->ncav + need) == I2M_OK && ctx_hold_reserve(ctx, s->nheld + need) == I2M_OK;
+  while (ok && ctx->cap_bnd < s->nbnd + need) ok = boundary_grow(ctx) == I2M_DT_OK;
+  search_load(s, ctx);
+  return ok;
+}
+
+static I2M_INLINE bool search_room(search_t *s, uint32_t need)
+{
+  if (I2M_LIKELY(s->ncav + need <= s->cap_cav && s->nbnd + need <= s->cap_bnd && s->nheld + need <= s->cap_held))
+    return true;
+  return search_grow(s, need);
+}
+
+/* The error bound grown to cover a new row (a few times per cavity: its first rows). */
+static I2M_INLINE double bound_grow(i2m_dt_ctx_t *ctx, const double *row)
+{
+  const double ax = fabs(row[0]), ay = fabs(row[1]), az = fabs(row[2]);
+  ctx->rmax[0] = ax > ctx->rmax[0] ? ax : ctx->rmax[0];
+  ctx->rmax[1] = ay > ctx->rmax[1] ? ay : ctx->rmax[1];
+  ctx->rmax[2] = az > ctx->rmax[2] ? az : ctx->rmax[2];
+  ctx->isp_bound = i2m_insphere_rows_bound(ctx->rmax[0], ctx->rmax[1], ctx->rmax[2]);
+  return ctx->isp_bound;
+}
+
+static I2M_INLINE bool row_exceeds(const i2m_dt_ctx_t *ctx, const double *row)
+{
+  return (fabs(row[0]) > ctx->rmax[0]) | (fabs(row[1]) > ctx->rmax[1]) | (fabs(row[2]) > ctx->rmax[2]);
+}
+
+/* The row of vertex v for point p, and the cavity's error bound grown to cover it. */
 static I2M_INLINE void row_fill(i2m_dt_ctx_t *ctx, double *row, uint32_t v, const double *p)
 {
   i2m_insphere_row(i2m_dt_xyz(ctx->dt, v), p, row);
-  const double ax = fabs(row[0]), ay = fabs(row[1]), az = fabs(row[2]);
-  if (I2M_UNLIKELY((ax > ctx->rmax[0]) | (ay > ctx->rmax[1]) | (az > ctx->rmax[2]))) {
-    ctx->rmax[0] = ax > ctx->rmax[0] ? ax : ctx->rmax[0];
-    ctx->rmax[1] = ay > ctx->rmax[1] ? ay : ctx->rmax[1];
-    ctx->rmax[2] = az > ctx->rmax[2] ? az : ctx->rmax[2];
-    ctx->isp_bound = i2m_insphere_rows_bound(ctx->rmax[0], ctx->rmax[1], ctx->rmax[2]);
-  }
-}
-
-static I2M_INLINE void row_make(i2m_dt_ctx_t *ctx, uint32_t k, uint32_t v, const double *p)
-{
-  row_fill(ctx, ctx->rows + 4 * (size_t)k, v, p);
+  if (I2M_UNLIKELY(row_exceeds(ctx, row))) bound_grow(ctx, row);
 }
 
 /* Gives vertex v a local number for this insertion: takes its lock word (a compare-and-swap
- * in threaded runs) and makes its row.  A vertex the context already holds has its number
- * (and row) already.  Returns the number, -1 if another thread holds the vertex, -2 when
- * out of memory. */
-static I2M_INLINE int64_t local_vertex(i2m_dt_ctx_t *ctx, uint32_t v, const double *p)
+ * when locking) and makes its row.  A vertex the context already holds has its number (and
+ * row) already.  Returns the number, or -1 when another thread holds the vertex.  Room for
+ * one more local vertex was made. */
+static I2M_INLINE int64_t search_vertex(search_t *s, uint32_t v, bool locking)
 {
-  _Atomic uint32_t *L = &ctx->dt->vlock[v];
-  uint32_t cur = atomic_load_explicit(L, memory_order_relaxed);
-  if ((cur & I2M_DT_OWNER_MASK) == ctx->owner) return cur >> I2M_DT_OWNER_BITS;
-  uint32_t k = ctx->nheld;
-  if (I2M_UNLIKELY(k == ctx->cap_held) && ctx_hold_room(ctx) != I2M_OK) return -2;
-  uint32_t word = ctx->owner | (k << I2M_DT_OWNER_BITS);
-  if (ctx->locking) {
+  _Atomic uint32_t *L = &s->vlock[v];
+  const uint32_t cur = atomic_load_explicit(L, memory_order_relaxed);
+  if ((cur & I2M_DT_OWNER_MASK) == s->owner) return cur >> I2M_DT_OWNER_BITS;
+  const uint32_t k = s->nheld, word = s->owner | (k << I2M_DT_OWNER_BITS);
+  if (locking) {
     uint32_t expected = 0;
     if (cur != 0 || !atomic_compare_exchange_strong_explicit(L, &expected, word, memory_order_acquire,
                                                              memory_order_relaxed)) {
-      ctx->conflict_owner = (cur ? cur : expected) & I2M_DT_OWNER_MASK;
+      s->ctx->conflict_owner = (cur ? cur : expected) & I2M_DT_OWNER_MASK;
       return -1;
     }
   } else {
     atomic_store_explicit(L, word, memory_order_relaxed);
   }
-  ctx->held[k] = v;
-  ctx->nheld = k + 1;
-  row_make(ctx, k, v, p);
+  s->held[k] = v;
+  s->nheld = k + 1;
+  double *row = s->rows + 4 * (size_t)k;
+  i2m_insphere_row(s->xyzw + 4 * (size_t)v, s->p, row);
+  if (I2M_UNLIKELY(row_exceeds(s->ctx, row))) s->bound = bound_grow(s->ctx, row);
   return k;
 }
 
 static inline uint32_t local_owner(const i2m_dt_ctx_t *ctx, uint32_t v)
 {
   return atomic_load_explicit(&ctx->dt->vlock[v], memory_order_relaxed) & I2M_DT_OWNER_MASK;
-}
-
-static inline uint32_t local_of(const i2m_dt_t *dt, uint32_t v)
-{
-  return atomic_load_explicit(&dt->vlock[v], memory_order_relaxed) >> I2M_DT_OWNER_BITS;
 }
 
 /* The conflict test decided past the cavity's bound: the filter on the rows r of vertices v
@@ -100,174 +184,170 @@ static I2M_NOINLINE int conflict_decide(const i2m_dt_ctx_t *ctx, const double *c
 }
 
 /* The same for the tet whose vertices have local numbers l[]. */
-static I2M_NOINLINE int conflict_exact(const i2m_dt_ctx_t *ctx, const uint32_t l[4], const double *p, i2m_gidx_t gid)
+static I2M_NOINLINE int conflict_exact(const search_t *s, const uint32_t l[4])
 {
-  const double *R = ctx->rows;
+  const double *R = s->rows;
   const double *const r[4] = {R + 4 * l[0], R + 4 * l[1], R + 4 * l[2], R + 4 * l[3]};
-  const uint32_t v[4] = {ctx->held[l[0]], ctx->held[l[1]], ctx->held[l[2]], ctx->held[l[3]]};
-  return conflict_decide(ctx, r, v, p, gid);
+  const uint32_t v[4] = {s->held[l[0]], s->held[l[1]], s->held[l[2]], s->held[l[3]]};
+  return conflict_decide(s->ctx, r, v, s->p, s->gid);
 }
 
 /* Conflict test of a positive tet given by its local numbers: > 0 when p is in its ball. */
-static I2M_INLINE int conflict(const i2m_dt_ctx_t *ctx, const uint32_t l[4], const double *p, i2m_gidx_t gid)
+static I2M_INLINE int conflict(const search_t *s, const uint32_t l[4])
 {
-  const double *R = ctx->rows;
+  const double *R = s->rows;
   const double det = i2m_insphere_det_rows(R + 4 * l[0], R + 4 * l[1], R + 4 * l[2], R + 4 * l[3]);
-  if (I2M_LIKELY(fabs(det) > ctx->isp_bound)) return (det > 0.0) - (det < 0.0);
-  return conflict_exact(ctx, l, p, gid);
+  if (I2M_LIKELY(fabs(det) > s->bound)) return (det > 0.0) - (det < 0.0);
+  return conflict_exact(s, l);
 }
 
 /* The same for tet c (local numbers cl) with its vertex i replaced by local vertex w: the
  * neighbour across face i, negatively oriented, so < 0 when p is in its ball. */
-static I2M_INLINE int conflict_across(const i2m_dt_ctx_t *ctx, const uint32_t cl[4], uint32_t i, uint32_t w,
-                                      const double *p, i2m_gidx_t gid)
+static I2M_INLINE int conflict_across(const search_t *s, const uint32_t cl[4], uint32_t i, uint32_t w)
 {
-  const double *R = ctx->rows;
+  const double *R = s->rows;
   const double *r[4] = {R + 4 * cl[0], R + 4 * cl[1], R + 4 * cl[2], R + 4 * cl[3]};
   r[i] = R + 4 * w;
   const double det = i2m_insphere_det_rows(r[0], r[1], r[2], r[3]);
-  if (I2M_LIKELY(fabs(det) > ctx->isp_bound)) return (det > 0.0) - (det < 0.0);
+  if (I2M_LIKELY(fabs(det) > s->bound)) return (det > 0.0) - (det < 0.0);
   uint32_t fl[4] = {cl[0], cl[1], cl[2], cl[3]};
   fl[i] = w;
-  return conflict_exact(ctx, fl, p, gid);
+  return conflict_exact(s, fl);
 }
 
 /* conflict_across for an apex w that has no local number (zone mode: a vertex outside the
  * zone, which may be read but not numbered), from its row computed on the spot. */
-static I2M_NOINLINE int conflict_across_unnumbered(i2m_dt_ctx_t *ctx, const uint32_t cl[4], uint32_t i, uint32_t w,
-                                                   const double *p, i2m_gidx_t gid)
+static I2M_NOINLINE int conflict_across_unnumbered(search_t *s, const uint32_t cl[4], uint32_t i, uint32_t w)
 {
   double row[4];
-  row_fill(ctx, row, w, p);
-  const double *R = ctx->rows;
+  row_fill(s->ctx, row, w, s->p);
+  s->bound = s->ctx->isp_bound;
+  const double *R = s->rows;
   const double *r[4] = {R + 4 * cl[0], R + 4 * cl[1], R + 4 * cl[2], R + 4 * cl[3]};
   r[i] = row;
   const double det = i2m_insphere_det_rows(r[0], r[1], r[2], r[3]);
-  if (fabs(det) > ctx->isp_bound) return (det > 0.0) - (det < 0.0);
-  uint32_t v[4] = {ctx->held[cl[0]], ctx->held[cl[1]], ctx->held[cl[2]], ctx->held[cl[3]]};
+  if (fabs(det) > s->bound) return (det > 0.0) - (det < 0.0);
+  uint32_t v[4] = {s->held[cl[0]], s->held[cl[1]], s->held[cl[2]], s->held[cl[3]]};
   v[i] = w;
-  return conflict_decide(ctx, r, v, p, gid);
+  return conflict_decide(s->ctx, r, v, s->p, s->gid);
 }
 
-static inline bool row_is_origin(const i2m_dt_ctx_t *ctx, uint32_t l)
+static inline bool row_is_origin(const search_t *s, uint32_t l)
 {
-  const double *r = ctx->rows + 4 * (size_t)l;
+  const double *r = s->rows + 4 * (size_t)l;
   return (r[0] == 0.0) & (r[1] == 0.0) & (r[2] == 0.0); /* x - p is exact only for x == p */
 }
 
-static I2M_NOINLINE i2m_dt_status_t boundary_grow(i2m_dt_ctx_t *ctx)
+static I2M_INLINE void boundary_push(search_t *s, uint32_t ki, uint32_t out)
 {
-  uint32_t cap = ctx->cap_bnd + ctx->cap_bnd / 2 + 64;
-  if (i2m_realloc(cap, sizeof(i2m_dt_bface_t), &ctx->bnd) != I2M_OK) return I2M_DT_FULL;
-  ctx->cap_bnd = cap;
-  return I2M_DT_OK;
+  s->bnd[s->nbnd++] = (i2m_dt_bface_t){ki, out};
 }
 
-static I2M_INLINE i2m_dt_status_t boundary_push(i2m_dt_ctx_t *ctx, uint32_t ki, uint32_t out)
+/* Tet t (local numbers l) joins the cavity; the words of its neighbours, which the search
+ * visits later, start loading. */
+static I2M_INLINE void cavity_push(search_t *s, uint32_t t, const uint32_t l[4])
 {
-  if (I2M_UNLIKELY(ctx->nbnd == ctx->cap_bnd) && boundary_grow(ctx) != I2M_DT_OK) return I2M_DT_FULL;
-  ctx->bnd[ctx->nbnd++] = (i2m_dt_bface_t){ki, out};
-  return I2M_DT_OK;
-}
-
-static I2M_INLINE i2m_dt_status_t cavity_push(i2m_dt_ctx_t *ctx, uint32_t t, const uint32_t l[4])
-{
-  if (I2M_UNLIKELY(ctx->ncav == ctx->cap_cav) && ctx_cavity_room(ctx, ctx->ncav + 1) != I2M_OK) return I2M_DT_FULL;
-  memcpy(ctx->cavl + 4 * (size_t)ctx->ncav, l, 4 * sizeof *l);
-  ctx->cav[ctx->ncav++] = t;
-  i2m_dt_t *dt = ctx->dt;
-  meta_store(dt, t, i2m_dt_meta(dt, t) | I2M_TM_MARK);
-  /* the search visits t's neighbours later: their words start loading now */
-  const uint32_t *tn = dt->tn + 4 * (size_t)t;
+  memcpy(s->cavl + 4 * (size_t)s->ncav, l, 4 * sizeof *l);
+  s->cav[s->ncav++] = t;
+  atomic_store_explicit(&s->meta[t], atomic_load_explicit(&s->meta[t], memory_order_relaxed) | I2M_TM_MARK,
+                        memory_order_relaxed);
+  const uint32_t *tn = s->tn + 4 * (size_t)t;
   for (int i = 0; i < 4; i++) {
     if (tn[i] == I2M_DT_NONE) continue;
-    I2M_PREFETCH(&dt->meta[tn[i] >> 2]);
-    I2M_PREFETCH(dt->tv + 4 * (size_t)(tn[i] >> 2));
+    I2M_PREFETCH(&s->meta[tn[i] >> 2]);
+    I2M_PREFETCH(s->tv + 4 * (size_t)(tn[i] >> 2));
   }
-  return I2M_DT_OK;
 }
 
 /* Face i of the k-th cavity tet c (local numbers cl): the neighbour across it joins the
  * cavity when p is in its ball, else the face is a boundary face.  The neighbour is c with
  * vertex i replaced by its apex, negatively oriented; the local numbers of its other
  * vertices are looked up only when it joins.  Inlined with a constant i. */
-static I2M_INLINE i2m_dt_status_t cavity_visit(i2m_dt_ctx_t *ctx, uint32_t k, uint32_t c, const uint32_t cl[4],
-                                               uint32_t i, const double *p, i2m_gidx_t gid, bool zoned)
+static I2M_INLINE i2m_dt_status_t cavity_visit(search_t *s, uint32_t k, uint32_t c, const uint32_t cl[4], uint32_t i,
+                                               bool zoned, bool locking)
 {
-  i2m_dt_t *dt = ctx->dt;
-  const uint32_t n = dt->tn[4 * (size_t)c + i];
-  if (I2M_UNLIKELY(n == I2M_DT_NONE)) return boundary_push(ctx, k << 2 | i, n); /* box hull */
-  const uint32_t u = n >> 2, j = n & 3;
-  const uint32_t m = i2m_dt_meta(dt, u);
-  if (m & I2M_TM_MARK) return I2M_DT_OK; /* inside the cavity: not a boundary face */
-  const uint32_t *uv = dt->tv + 4 * (size_t)u;
-  if (zoned && I2M_UNLIKELY(!zone_holds(ctx, uv[j])) && (local_owner(ctx, uv[j]) != ctx->owner)) {
-    /* zone mode: a vertex outside the zone may be read, not numbered; u may stay outside */
-    if (conflict_across_unnumbered(ctx, cl, i, uv[j], p, gid) >= 0) return boundary_push(ctx, k << 2 | i, n);
-    ctx->conflict_owner = 0;
-    return I2M_DT_ROLLBACK;
+  const uint32_t n = s->tn[4 * (size_t)c + i];
+  if (I2M_UNLIKELY(n == I2M_DT_NONE)) { /* box hull */
+    boundary_push(s, k << 2 | i, n);
+    return I2M_DT_OK;
   }
-  const int64_t lw = local_vertex(ctx, uv[j], p);
-  if (I2M_UNLIKELY(lw < 0)) return lw == -1 ? I2M_DT_ROLLBACK : I2M_DT_FULL;
-  if (conflict_across(ctx, cl, i, (uint32_t)lw, p, gid) >= 0) {
-    I2M_PREFETCH_WRITE(&dt->tn[n]); /* the refill links the outside tet back to its new neighbour */
-    return boundary_push(ctx, k << 2 | i, n);
+  const uint32_t u = n >> 2, j = n & 3;
+  const uint32_t m = atomic_load_explicit(&s->meta[u], memory_order_relaxed);
+  if (m & I2M_TM_MARK) return I2M_DT_OK; /* inside the cavity: not a boundary face */
+  const uint32_t *uv = s->tv + 4 * (size_t)u;
+  if (zoned && I2M_UNLIKELY(!zone_holds(s->ctx, uv[j])) && (local_owner(s->ctx, uv[j]) != s->owner)) {
+    /* zone mode: a vertex outside the zone may be read, not numbered; u may stay outside */
+    if (conflict_across_unnumbered(s, cl, i, uv[j]) < 0) {
+      s->ctx->conflict_owner = 0;
+      return I2M_DT_ROLLBACK;
+    }
+    boundary_push(s, k << 2 | i, n);
+    return I2M_DT_OK;
+  }
+  const int64_t lw = search_vertex(s, uv[j], locking);
+  if (I2M_UNLIKELY(lw < 0)) return I2M_DT_ROLLBACK;
+  if (conflict_across(s, cl, i, (uint32_t)lw) >= 0) {
+    I2M_PREFETCH_WRITE((const void *)&s->tn[n]); /* the refill links the outside tet back to its new neighbour */
+    boundary_push(s, k << 2 | i, n);
+    return I2M_DT_OK;
   }
   if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
-  if (row_is_origin(ctx, (uint32_t)lw)) return I2M_DT_DUPLICATE;
-  uint32_t ul[4] = {local_of(dt, uv[0]), local_of(dt, uv[1]), local_of(dt, uv[2]), local_of(dt, uv[3])};
-  return cavity_push(ctx, u, ul);
+  if (row_is_origin(s, (uint32_t)lw)) return I2M_DT_DUPLICATE;
+  _Atomic uint32_t *L = s->vlock;
+  const uint32_t ul[4] = {atomic_load_explicit(&L[uv[0]], memory_order_relaxed) >> I2M_DT_OWNER_BITS,
+                          atomic_load_explicit(&L[uv[1]], memory_order_relaxed) >> I2M_DT_OWNER_BITS,
+                          atomic_load_explicit(&L[uv[2]], memory_order_relaxed) >> I2M_DT_OWNER_BITS,
+                          atomic_load_explicit(&L[uv[3]], memory_order_relaxed) >> I2M_DT_OWNER_BITS};
+  cavity_push(s, u, ul);
+  return I2M_DT_OK;
 }
 
 /* Requests the words of the vertices across the faces of cavity tet t (their lock words and
  * coordinates, which the visits read), a tet before they are visited: the neighbours' vertex
  * lists, requested when t joined, have arrived by then. */
-static I2M_INLINE void prefetch_apexes(const i2m_dt_t *dt, uint32_t t)
+static I2M_INLINE void prefetch_apexes(const search_t *s, uint32_t t)
 {
-  const uint32_t *tn = dt->tn + 4 * (size_t)t;
+  const uint32_t *tn = s->tn + 4 * (size_t)t;
   for (int i = 0; i < 4; i++) {
     if (tn[i] == I2M_DT_NONE) continue;
-    const uint32_t w = dt->tv[tn[i]]; /* 4u + j: vertex j of neighbour u, its apex */
-    I2M_PREFETCH(&dt->vlock[w]);
-    I2M_PREFETCH(dt->xyzw + 4 * (size_t)w);
+    const uint32_t w = s->tv[tn[i]]; /* 4u + j: vertex j of neighbour u, its apex */
+    I2M_PREFETCH(&s->vlock[w]);
+    I2M_PREFETCH(s->xyzw + 4 * (size_t)w);
   }
 }
 
-/* Breadth-first search of the tets whose circumballs hold p, from a seed in conflict.  Every
- * vertex met gets a local number (and, in threaded runs, is locked); the outside tets'
- * apexes are locked too, as the new tets' neighbours will change. */
-static I2M_INLINE i2m_dt_status_t cavity_search_in(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid, bool zoned)
+/* Breadth-first search of the tets whose circumballs hold p, from the seed (the first cavity
+ * tet).  Every vertex met gets a local number (and, when locking, is locked); the outside
+ * tets' apexes are numbered too, as the new tets' neighbours will change. */
+static I2M_INLINE i2m_dt_status_t cavity_search_in(search_t *s, bool zoned, bool locking)
 {
-  for (uint32_t k = 0; k < ctx->ncav; k++) {
-    const uint32_t c = ctx->cav[k];
+  for (uint32_t k = 0; k < s->ncav; k++) {
+    if (!search_room(s, 4)) return I2M_DT_FULL;
+    const uint32_t c = s->cav[k];
     uint32_t cl[4];
-    memcpy(cl, ctx->cavl + 4 * (size_t)k, sizeof cl);
-    if (k + 1 < ctx->ncav) prefetch_apexes(ctx->dt, ctx->cav[k + 1]);
+    memcpy(cl, s->cavl + 4 * (size_t)k, sizeof cl);
+    if (k + 1 < s->ncav) prefetch_apexes(s, s->cav[k + 1]);
     i2m_dt_status_t st;
-    if ((st = cavity_visit(ctx, k, c, cl, 0, p, gid, zoned)) != I2M_DT_OK) return st;
-    if ((st = cavity_visit(ctx, k, c, cl, 1, p, gid, zoned)) != I2M_DT_OK) return st;
-    if ((st = cavity_visit(ctx, k, c, cl, 2, p, gid, zoned)) != I2M_DT_OK) return st;
-    if ((st = cavity_visit(ctx, k, c, cl, 3, p, gid, zoned)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(s, k, c, cl, 0, zoned, locking)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(s, k, c, cl, 1, zoned, locking)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(s, k, c, cl, 2, zoned, locking)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(s, k, c, cl, 3, zoned, locking)) != I2M_DT_OK) return st;
   }
   return I2M_DT_OK;
 }
 
-/* Two copies: with and without the zone test (the deterministic mode's), which then costs
- * nothing in the other runs. */
-static I2M_NOINLINE i2m_dt_status_t cavity_search_zoned(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid)
+/* Three copies, so that neither the zone test (the deterministic mode's) nor the locks cost
+ * anything in the runs that do not use them. */
+static I2M_NOINLINE i2m_dt_status_t cavity_search_zoned(search_t *s) { return cavity_search_in(s, true, s->ctx->locking); }
+static I2M_NOINLINE i2m_dt_status_t cavity_search_locking(search_t *s) { return cavity_search_in(s, false, true); }
+static I2M_NOINLINE i2m_dt_status_t cavity_search_free(search_t *s) { return cavity_search_in(s, false, false); }
+
+static i2m_dt_status_t cavity_search(search_t *s)
 {
-  return cavity_search_in(ctx, p, gid, true);
+  const i2m_dt_ctx_t *ctx = s->ctx;
+  return ctx->zone ? cavity_search_zoned(s) : ctx->locking ? cavity_search_locking(s) : cavity_search_free(s);
 }
 
-static I2M_NOINLINE i2m_dt_status_t cavity_search_free(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid)
-{
-  return cavity_search_in(ctx, p, gid, false);
-}
-
-static i2m_dt_status_t cavity_search(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid)
-{
-  return ctx->zone ? cavity_search_zoned(ctx, p, gid) : cavity_search_free(ctx, p, gid);
-}
 
 /* ---- refill ---- */
 
@@ -294,9 +374,23 @@ static bool edge_table_ready(i2m_dt_ctx_t *ctx, uint32_t nb)
   return true;
 }
 
-static I2M_INLINE uint16_t *edge_entry(const i2m_dt_ctx_t *ctx, uint32_t a, uint32_t b)
+/* The refill's working set, kept in registers like the search's (see search_t). */
+typedef struct {
+  uint32_t *tv, *tn, *vtet;
+  _Atomic uint32_t *meta;
+  const uint32_t *cavl, *held, *newt;
+  uint16_t *etab2;
+} fill_t;
+
+static I2M_INLINE fill_t fill_begin(const i2m_dt_ctx_t *ctx)
 {
-  return ctx->etab2 + (a * EDGE_TABLE_SIDE + b);
+  i2m_dt_t *dt = ctx->dt;
+  return (fill_t){dt->tv, dt->tn, dt->vtet, dt->meta, ctx->cavl, ctx->held, ctx->newt, ctx->etab2};
+}
+
+static I2M_INLINE uint16_t *edge_entry(const fill_t *f, uint32_t a, uint32_t b)
+{
+  return f->etab2 + (a * EDGE_TABLE_SIDE + b);
 }
 
 /* The three slots other than i. */
@@ -304,49 +398,50 @@ static const uint8_t OTHER3[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}}
 
 /* New tet k: boundary face b (face i of its cavity tet) joined to the new vertex v.  Inlined
  * with a constant i, so every slot index is a constant. */
-static I2M_INLINE uint32_t fill_tet(i2m_dt_ctx_t *ctx, uint32_t k, i2m_dt_bface_t b, uint32_t i, uint32_t v)
+static I2M_INLINE uint32_t fill_tet(const fill_t *f, uint32_t k, i2m_dt_bface_t b, uint32_t i, uint32_t v)
 {
-  i2m_dt_t *dt = ctx->dt;
-  const uint32_t *cl = ctx->cavl + 4 * (size_t)(b.ki >> 2), *H = ctx->held, t = ctx->newt[k];
-  meta_store(dt, t, meta_reborn(i2m_dt_meta(dt, t)));
-  uint32_t *tv = dt->tv + 4 * (size_t)t;
-  for (uint32_t s = 0; s < 4; s++) tv[s] = s == i ? v : H[cl[s]];
-  dt->tn[4 * (size_t)t + i] = b.out;
-  if (b.out != I2M_DT_NONE) dt->tn[b.out] = 4 * t + i;
-  dt->vtet[tv[OTHER3[i][0]]] = t;
-  dt->vtet[tv[OTHER3[i][1]]] = t;
-  dt->vtet[tv[OTHER3[i][2]]] = t;
+  const uint32_t *cl = f->cavl + 4 * (size_t)(b.ki >> 2), t = f->newt[k];
+  const uint32_t m = atomic_load_explicit(&f->meta[t], memory_order_relaxed);
+  atomic_store_explicit(&f->meta[t], meta_reborn(m), memory_order_relaxed);
+  uint32_t w[4];
+  for (uint32_t s = 0; s < 4; s++) w[s] = s == i ? v : f->held[cl[s]];
+  memcpy(f->tv + 4 * (size_t)t, w, sizeof w);
+  f->tn[4 * (size_t)t + i] = b.out;
+  if (b.out != I2M_DT_NONE) f->tn[b.out] = 4 * t + i;
+  f->vtet[w[OTHER3[i][0]]] = t;
+  f->vtet[w[OTHER3[i][1]]] = t;
+  f->vtet[w[OTHER3[i][2]]] = t;
   return t;
 }
 
 /* Files face j of new tet k under its directed boundary edge (see EDGE_DIR). */
-static I2M_INLINE void file_face(i2m_dt_ctx_t *ctx, uint32_t k, const uint32_t *cl, uint32_t i, uint32_t j)
+static I2M_INLINE void file_face(const fill_t *f, uint32_t k, const uint32_t *cl, uint32_t i, uint32_t j)
 {
-  *edge_entry(ctx, cl[EDGE_DIR[i][j][0]], cl[EDGE_DIR[i][j][1]]) = (uint16_t)(k << 2 | j);
+  *edge_entry(f, cl[EDGE_DIR[i][j][0]], cl[EDGE_DIR[i][j][1]]) = (uint16_t)(k << 2 | j);
 }
 
 /* Face j of new tet t from the partner filed under the reversed edge. */
-static I2M_INLINE void link_face(i2m_dt_ctx_t *ctx, uint32_t t, const uint32_t *cl, uint32_t i, uint32_t j)
+static I2M_INLINE void link_face(const fill_t *f, uint32_t t, const uint32_t *cl, uint32_t i, uint32_t j)
 {
-  const uint32_t e = *edge_entry(ctx, cl[EDGE_DIR[i][j][1]], cl[EDGE_DIR[i][j][0]]);
-  ctx->dt->tn[4 * (size_t)t + j] = 4 * ctx->newt[e >> 2] + (e & 3);
+  const uint32_t e = *edge_entry(f, cl[EDGE_DIR[i][j][1]], cl[EDGE_DIR[i][j][0]]);
+  f->tn[4 * (size_t)t + j] = 4 * f->newt[e >> 2] + (e & 3);
 }
 
-static I2M_INLINE void fill_direct(i2m_dt_ctx_t *ctx, uint32_t k, i2m_dt_bface_t b, uint32_t i, uint32_t v)
+static I2M_INLINE void fill_direct(const fill_t *f, uint32_t k, i2m_dt_bface_t b, uint32_t i, uint32_t v)
 {
-  fill_tet(ctx, k, b, i, v);
-  const uint32_t *cl = ctx->cavl + 4 * (size_t)(b.ki >> 2);
-  file_face(ctx, k, cl, i, OTHER3[i][0]);
-  file_face(ctx, k, cl, i, OTHER3[i][1]);
-  file_face(ctx, k, cl, i, OTHER3[i][2]);
+  fill_tet(f, k, b, i, v);
+  const uint32_t *cl = f->cavl + 4 * (size_t)(b.ki >> 2);
+  file_face(f, k, cl, i, OTHER3[i][0]);
+  file_face(f, k, cl, i, OTHER3[i][1]);
+  file_face(f, k, cl, i, OTHER3[i][2]);
 }
 
-static I2M_INLINE void link_direct(i2m_dt_ctx_t *ctx, uint32_t k, uint32_t ki, uint32_t i)
+static I2M_INLINE void link_direct(const fill_t *f, uint32_t k, uint32_t ki, uint32_t i)
 {
-  const uint32_t *cl = ctx->cavl + 4 * (size_t)(ki >> 2), t = ctx->newt[k];
-  link_face(ctx, t, cl, i, OTHER3[i][0]);
-  link_face(ctx, t, cl, i, OTHER3[i][1]);
-  link_face(ctx, t, cl, i, OTHER3[i][2]);
+  const uint32_t *cl = f->cavl + 4 * (size_t)(ki >> 2), t = f->newt[k];
+  link_face(f, t, cl, i, OTHER3[i][0]);
+  link_face(f, t, cl, i, OTHER3[i][1]);
+  link_face(f, t, cl, i, OTHER3[i][2]);
 }
 
 /* The new tets of a cavity too large for the edge table: adjacency through the hash. */
@@ -354,7 +449,8 @@ static I2M_NOINLINE void fill_hashed(i2m_dt_ctx_t *ctx, uint32_t v)
 {
   for (uint32_t k = 0; k < ctx->nbnd; k++) {
     const i2m_dt_bface_t b = ctx->bnd[k];
-    const uint32_t i = b.ki & 3, t = fill_tet(ctx, k, b, i, v);
+    const fill_t f = fill_begin(ctx);
+    const uint32_t i = b.ki & 3, t = fill_tet(&f, k, b, i, v);
     for (uint32_t x = 0; x < 3; x++) ctx_edge_link(ctx, t, i, OTHER3[i][x]);
   }
 }
@@ -399,25 +495,29 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   if (!direct && ctx_edges_begin(ctx, 3 * nb) != I2M_OK) return I2M_DT_FULL;
   const uint32_t v = new_vertex(ctx, p, gid, kind);
   if (v == I2M_DT_NONE) return I2M_DT_FULL;
-  for (uint32_t k = 0; k < nb; k++) ctx->newt[k] = k < nc ? ctx->cav[k] : ctx_tet_slot(ctx);
+  const uint32_t reused = nb < nc ? nb : nc;
+  memcpy(ctx->newt, ctx->cav, reused * sizeof *ctx->newt);
+  for (uint32_t k = reused; k < nb; k++) ctx->newt[k] = ctx_tet_slot(ctx);
   ctx->nnew = nb;
   if (direct) {
+    const fill_t f = fill_begin(ctx);
+    const i2m_dt_bface_t *bnd = ctx->bnd;
     for (uint32_t k = 0; k < nb; k++) {
-      const i2m_dt_bface_t b = ctx->bnd[k];
+      const i2m_dt_bface_t b = bnd[k];
       switch (b.ki & 3) { /* constant slot indices in each case */
-        case 0: fill_direct(ctx, k, b, 0, v); break;
-        case 1: fill_direct(ctx, k, b, 1, v); break;
-        case 2: fill_direct(ctx, k, b, 2, v); break;
-        default: fill_direct(ctx, k, b, 3, v); break;
+        case 0: fill_direct(&f, k, b, 0, v); break;
+        case 1: fill_direct(&f, k, b, 1, v); break;
+        case 2: fill_direct(&f, k, b, 2, v); break;
+        default: fill_direct(&f, k, b, 3, v); break;
       }
     }
     for (uint32_t k = 0; k < nb; k++) {
-      const uint32_t ki = ctx->bnd[k].ki;
+      const uint32_t ki = bnd[k].ki;
       switch (ki & 3) {
-        case 0: link_direct(ctx, k, ki, 0); break;
-        case 1: link_direct(ctx, k, ki, 1); break;
-        case 2: link_direct(ctx, k, ki, 2); break;
-        default: link_direct(ctx, k, ki, 3); break;
+        case 0: link_direct(&f, k, ki, 0); break;
+        case 1: link_direct(&f, k, ki, 1); break;
+        case 2: link_direct(&f, k, ki, 2); break;
+        default: link_direct(&f, k, ki, 3); break;
       }
     }
   } else {
@@ -439,9 +539,9 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
 /* Numbers and locks the seed's vertices (threaded: read before the locks, verified after)
  * and checks the seed: alive, unchanged, not frozen, p not one of its vertices, p in its
  * ball.  Then it is the first cavity tet. */
-static i2m_dt_status_t cavity_seed(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid, uint32_t seed,
-                                   uint32_t seed_meta)
+static i2m_dt_status_t cavity_seed(search_t *s, uint32_t seed, uint32_t seed_meta)
 {
+  i2m_dt_ctx_t *ctx = s->ctx;
   i2m_dt_t *dt = ctx->dt;
   const uint32_t *sv = dt->tv + 4 * (size_t)seed;
   uint32_t v4[4], l4[4];
@@ -450,9 +550,10 @@ static i2m_dt_status_t cavity_seed(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
     ctx->conflict_owner = 0;
     return I2M_DT_ROLLBACK;
   }
+  if (!search_room(s, 4)) return I2M_DT_FULL;
   for (int i = 0; i < 4; i++) {
-    int64_t l = local_vertex(ctx, v4[i], p);
-    if (l < 0) return l == -1 ? I2M_DT_ROLLBACK : I2M_DT_FULL;
+    int64_t l = search_vertex(s, v4[i], ctx->locking);
+    if (l < 0) return I2M_DT_ROLLBACK;
     l4[i] = (uint32_t)l;
   }
   if (ctx->locking && memcmp(v4, sv, sizeof v4) != 0) return I2M_DT_STALE;
@@ -460,9 +561,10 @@ static i2m_dt_status_t cavity_seed(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   if ((m & I2M_TM_DEAD) || (seed_meta != I2M_DT_NONE && m != seed_meta)) return I2M_DT_STALE;
   if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
   for (int i = 0; i < 4; i++)
-    if (row_is_origin(ctx, l4[i])) return I2M_DT_DUPLICATE;
-  if (conflict(ctx, l4, p, gid) <= 0) return I2M_DT_NOT_IN_CONFLICT;
-  return cavity_push(ctx, seed, l4);
+    if (row_is_origin(s, l4[i])) return I2M_DT_DUPLICATE;
+  if (conflict(s, l4) <= 0) return I2M_DT_NOT_IN_CONFLICT;
+  cavity_push(s, seed, l4);
+  return I2M_DT_OK;
 }
 
 i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t gid, uint8_t kind,
@@ -476,15 +578,19 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
   }
   ctx->rmax[0] = ctx->rmax[1] = ctx->rmax[2] = 0.0;
   ctx->isp_bound = (double)INFINITY;
-  for (uint32_t k = 0; k < ctx->nheld; k++) row_make(ctx, k, ctx->held[k], p); /* locked before */
-  i2m_dt_status_t st = cavity_seed(ctx, p, gid, seed, seed_meta);
-  if (st == I2M_DT_OK) st = cavity_search(ctx, p, gid);
+  for (uint32_t k = 0; k < ctx->nheld; k++) row_fill(ctx, ctx->rows + 4 * (size_t)k, ctx->held[k], p); /* locked before */
+  search_t s;
+  search_begin(&s, ctx, p, gid);
+  i2m_dt_status_t st = cavity_seed(&s, seed, seed_meta);
+  if (st == I2M_DT_OK) st = cavity_search(&s);
+  search_store(&s);
   if (st == I2M_DT_OK) st = cavity_fill(ctx, p, gid, kind, vout);
   if (st != I2M_DT_OK) return cavity_abandon(ctx, st);
   ctx->ncav = ctx->nbnd = 0;
   if (!ctx->locking) i2m_dt_unlock_all(ctx); /* sequential: only the local numbering to undo */
   return I2M_DT_OK;
 }
+
 
 /* ---- point location ---- */
 

@@ -51,34 +51,20 @@ typedef struct {
   uint32_t owner, nheld, ncav, nbnd, cap_held, cap_cav, cap_bnd;
 } search_t;
 
+/* (Re)reads the context's scratch arrays, counts and bound (after they may have grown). */
 static I2M_INLINE void search_load(search_t *s, i2m_dt_ctx_t *ctx)
 {
-  s->rows = ctx->rows;
+  s->rows = ctx->rows, s->held = ctx->held, s->cav = ctx->cav, s->cavl = ctx->cavl, s->bnd = ctx->bnd;
+  s->nheld = ctx->nheld, s->ncav = ctx->ncav, s->nbnd = ctx->nbnd;
+  s->cap_held = ctx->cap_held, s->cap_cav = ctx->cap_cav, s->cap_bnd = ctx->cap_bnd;
   s->bound = ctx->isp_bound;
-  s->held = ctx->held;
-  s->cav = ctx->cav;
-  s->cavl = ctx->cavl;
-  s->bnd = ctx->bnd;
-  s->nheld = ctx->nheld;
-  s->ncav = ctx->ncav;
-  s->nbnd = ctx->nbnd;
-  s->cap_held = ctx->cap_held;
-  s->cap_cav = ctx->cap_cav;
-  s->cap_bnd = ctx->cap_bnd;
 }
 
 static I2M_INLINE void search_begin(search_t *s, i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid)
 {
   const i2m_dt_t *dt = ctx->dt;
-  s->ctx = ctx;
-  s->p = p;
-  s->gid = gid;
-  s->tn = dt->tn;
-  s->tv = dt->tv;
-  s->meta = dt->meta;
-  s->vlock = dt->vlock;
-  s->xyzw = dt->xyzw;
-  s->owner = ctx->owner;
+  *s = (search_t){.ctx = ctx, .p = p, .gid = gid, .tn = dt->tn, .tv = dt->tv, .meta = dt->meta,
+                  .vlock = dt->vlock, .xyzw = dt->xyzw, .owner = ctx->owner};
   search_load(s, ctx);
 }
 

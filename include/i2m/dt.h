@@ -118,7 +118,6 @@ typedef struct i2m_dt_ctx {
   uint32_t *newt; uint32_t nnew, cap_new;         /* tets created by the last operation */
   uint32_t *held; uint32_t nheld, cap_held;       /* vertex locks held = local vertices */
   double *rows;                                   /* [cap_held][4] translated by p, lifted */
-  double rmax[3], isp_bound;                      /* largest |row| per axis, its insphere bound */
   uint32_t *cavl;                                 /* [cap_cav][4] local vertex indices of cav[] */
   uint16_t *etab2;                                /* [128][128] directed edges of local numbers */
   struct i2m_dt_edge *etab; uint32_t ecap, stamp; /* edge table (adjacency of new tets) */

@@ -34,8 +34,9 @@ static i2m_dt_status_t cavity_abandon(i2m_dt_ctx_t *ctx, i2m_dt_status_t why)
  *
  * The search keeps what it reads and grows in a local working set (the arrays, the counts,
  * the error bound), so the compiler holds it in registers instead of reloading the context
- * after every store into the mesh; it is written back when the search ends and whenever a
- * scratch array must grow.  Room for a whole cavity tet's four faces (four more cavity tets,
+ * after every store into the mesh; the counts are written back when the search ends and
+ * whenever a scratch array must grow.  The rows' error bound lives only here: it covers the
+ * rows made for this insertion.  Room for a whole cavity tet's four faces (four more cavity tets,
  * boundary faces and local vertices) is made before the tet is visited, so no single push
  * checks a capacity. */
 typedef struct {
@@ -45,26 +46,26 @@ typedef struct {
   const uint32_t *tn, *tv;
   _Atomic uint32_t *meta, *vlock;
   const double *xyzw;
-  double *rows, bound;
+  double *rows;
+  double rmax[3], bound; /* largest |row| per axis, and its insphere bound */
   uint32_t *held, *cav, *cavl;
   i2m_dt_bface_t *bnd;
   uint32_t owner, nheld, ncav, nbnd, cap_held, cap_cav, cap_bnd;
 } search_t;
 
-/* (Re)reads the context's scratch arrays, counts and bound (after they may have grown). */
+/* (Re)reads the context's scratch arrays and counts (after they may have grown). */
 static I2M_INLINE void search_load(search_t *s, i2m_dt_ctx_t *ctx)
 {
   s->rows = ctx->rows, s->held = ctx->held, s->cav = ctx->cav, s->cavl = ctx->cavl, s->bnd = ctx->bnd;
   s->nheld = ctx->nheld, s->ncav = ctx->ncav, s->nbnd = ctx->nbnd;
   s->cap_held = ctx->cap_held, s->cap_cav = ctx->cap_cav, s->cap_bnd = ctx->cap_bnd;
-  s->bound = ctx->isp_bound;
 }
 
 static I2M_INLINE void search_begin(search_t *s, i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid)
 {
   const i2m_dt_t *dt = ctx->dt;
   *s = (search_t){.ctx = ctx, .p = p, .gid = gid, .tn = dt->tn, .tv = dt->tv, .meta = dt->meta,
-                  .vlock = dt->vlock, .xyzw = dt->xyzw, .owner = ctx->owner};
+                  .vlock = dt->vlock, .xyzw = dt->xyzw, .owner = ctx->owner, .bound = (double)INFINITY};
   search_load(s, ctx);
 }
 
@@ -102,26 +103,18 @@ static I2M_INLINE bool search_room(search_t *s, uint32_t need)
 }
 
 /* The error bound grown to cover a new row (a few times per cavity: its first rows). */
-static I2M_INLINE double bound_grow(i2m_dt_ctx_t *ctx, const double *row)
+static I2M_INLINE void bound_grow(search_t *s, const double *row)
 {
-  const double ax = fabs(row[0]), ay = fabs(row[1]), az = fabs(row[2]);
-  ctx->rmax[0] = ax > ctx->rmax[0] ? ax : ctx->rmax[0];
-  ctx->rmax[1] = ay > ctx->rmax[1] ? ay : ctx->rmax[1];
-  ctx->rmax[2] = az > ctx->rmax[2] ? az : ctx->rmax[2];
-  ctx->isp_bound = i2m_insphere_rows_bound(ctx->rmax[0], ctx->rmax[1], ctx->rmax[2]);
-  return ctx->isp_bound;
+  for (int a = 0; a < 3; a++) s->rmax[a] = fabs(row[a]) > s->rmax[a] ? fabs(row[a]) : s->rmax[a];
+  s->bound = i2m_insphere_rows_bound(s->rmax[0], s->rmax[1], s->rmax[2]);
 }
 
-static I2M_INLINE bool row_exceeds(const i2m_dt_ctx_t *ctx, const double *row)
+/* The row of vertex v for the new point, and the error bound grown to cover it. */
+static I2M_INLINE void row_fill(search_t *s, double *row, uint32_t v)
 {
-  return (fabs(row[0]) > ctx->rmax[0]) | (fabs(row[1]) > ctx->rmax[1]) | (fabs(row[2]) > ctx->rmax[2]);
-}
-
-/* The row of vertex v for point p, and the cavity's error bound grown to cover it. */
-static I2M_INLINE void row_fill(i2m_dt_ctx_t *ctx, double *row, uint32_t v, const double *p)
-{
-  i2m_insphere_row(i2m_dt_xyz(ctx->dt, v), p, row);
-  if (I2M_UNLIKELY(row_exceeds(ctx, row))) bound_grow(ctx, row);
+  i2m_insphere_row(s->xyzw + 4 * (size_t)v, s->p, row);
+  if (I2M_UNLIKELY((fabs(row[0]) > s->rmax[0]) | (fabs(row[1]) > s->rmax[1]) | (fabs(row[2]) > s->rmax[2])))
+    bound_grow(s, row);
 }
 
 /* Gives vertex v a local number for this insertion: takes its lock word (a compare-and-swap
@@ -146,15 +139,19 @@ static I2M_INLINE int64_t search_vertex(search_t *s, uint32_t v, bool locking)
   }
   s->held[k] = v;
   s->nheld = k + 1;
-  double *row = s->rows + 4 * (size_t)k;
-  i2m_insphere_row(s->xyzw + 4 * (size_t)v, s->p, row);
-  if (I2M_UNLIKELY(row_exceeds(s->ctx, row))) s->bound = bound_grow(s->ctx, row);
+  row_fill(s, s->rows + 4 * (size_t)k, v);
   return k;
 }
 
-static inline uint32_t local_owner(const i2m_dt_ctx_t *ctx, uint32_t v)
+static inline uint32_t local_owner(const search_t *s, uint32_t v)
 {
-  return atomic_load_explicit(&ctx->dt->vlock[v], memory_order_relaxed) & I2M_DT_OWNER_MASK;
+  return atomic_load_explicit(&s->vlock[v], memory_order_relaxed) & I2M_DT_OWNER_MASK;
+}
+
+/* The local number of a vertex the context holds. */
+static inline uint32_t local_number(const search_t *s, uint32_t v)
+{
+  return atomic_load_explicit(&s->vlock[v], memory_order_relaxed) >> I2M_DT_OWNER_BITS;
 }
 
 /* The conflict test decided past the cavity's bound: the filter on the rows r of vertices v
@@ -206,8 +203,7 @@ static I2M_INLINE int conflict_across(const search_t *s, const uint32_t cl[4], u
 static I2M_NOINLINE int conflict_across_unnumbered(search_t *s, const uint32_t cl[4], uint32_t i, uint32_t w)
 {
   double row[4];
-  row_fill(s->ctx, row, w, s->p);
-  s->bound = s->ctx->isp_bound;
+  row_fill(s, row, w);
   const double *R = s->rows;
   const double *r[4] = {R + 4 * cl[0], R + 4 * cl[1], R + 4 * cl[2], R + 4 * cl[3]};
   r[i] = row;
@@ -261,7 +257,7 @@ static I2M_INLINE i2m_dt_status_t cavity_visit(search_t *s, uint32_t k, uint32_t
   const uint32_t m = atomic_load_explicit(&s->meta[u], memory_order_relaxed);
   if (m & I2M_TM_MARK) return I2M_DT_OK; /* inside the cavity: not a boundary face */
   const uint32_t *uv = s->tv + 4 * (size_t)u;
-  if (zoned && I2M_UNLIKELY(!zone_holds(s->ctx, uv[j])) && (local_owner(s->ctx, uv[j]) != s->owner)) {
+  if (zoned && I2M_UNLIKELY(!zone_holds(s->ctx, uv[j])) && (local_owner(s, uv[j]) != s->owner)) {
     /* zone mode: a vertex outside the zone may be read, not numbered; u may stay outside */
     if (conflict_across_unnumbered(s, cl, i, uv[j]) < 0) {
       s->ctx->conflict_owner = 0;
@@ -279,11 +275,7 @@ static I2M_INLINE i2m_dt_status_t cavity_visit(search_t *s, uint32_t k, uint32_t
   }
   if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
   if (row_is_origin(s, (uint32_t)lw)) return I2M_DT_DUPLICATE;
-  _Atomic uint32_t *L = s->vlock;
-  const uint32_t ul[4] = {atomic_load_explicit(&L[uv[0]], memory_order_relaxed) >> I2M_DT_OWNER_BITS,
-                          atomic_load_explicit(&L[uv[1]], memory_order_relaxed) >> I2M_DT_OWNER_BITS,
-                          atomic_load_explicit(&L[uv[2]], memory_order_relaxed) >> I2M_DT_OWNER_BITS,
-                          atomic_load_explicit(&L[uv[3]], memory_order_relaxed) >> I2M_DT_OWNER_BITS};
+  const uint32_t ul[4] = {local_number(s, uv[0]), local_number(s, uv[1]), local_number(s, uv[2]), local_number(s, uv[3])};
   cavity_push(s, u, ul);
   return I2M_DT_OK;
 }
@@ -333,7 +325,6 @@ static i2m_dt_status_t cavity_search(search_t *s)
   const i2m_dt_ctx_t *ctx = s->ctx;
   return ctx->zone ? cavity_search_zoned(s) : ctx->locking ? cavity_search_locking(s) : cavity_search_free(s);
 }
-
 
 /* ---- refill ---- */
 
@@ -433,9 +424,9 @@ static I2M_INLINE void link_direct(const fill_t *f, uint32_t k, uint32_t ki, uin
 /* The new tets of a cavity too large for the edge table: adjacency through the hash. */
 static I2M_NOINLINE void fill_hashed(i2m_dt_ctx_t *ctx, uint32_t v)
 {
+  const fill_t f = fill_begin(ctx);
   for (uint32_t k = 0; k < ctx->nbnd; k++) {
     const i2m_dt_bface_t b = ctx->bnd[k];
-    const fill_t f = fill_begin(ctx);
     const uint32_t i = b.ki & 3, t = fill_tet(&f, k, b, i, v);
     for (uint32_t x = 0; x < 3; x++) ctx_edge_link(ctx, t, i, OTHER3[i][x]);
   }
@@ -562,11 +553,9 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
     ctx->conflict_owner = 0;
     return cavity_abandon(ctx, I2M_DT_ROLLBACK);
   }
-  ctx->rmax[0] = ctx->rmax[1] = ctx->rmax[2] = 0.0;
-  ctx->isp_bound = (double)INFINITY;
-  for (uint32_t k = 0; k < ctx->nheld; k++) row_fill(ctx, ctx->rows + 4 * (size_t)k, ctx->held[k], p); /* locked before */
   search_t s;
   search_begin(&s, ctx, p, gid);
+  for (uint32_t k = 0; k < s.nheld; k++) row_fill(&s, s.rows + 4 * (size_t)k, s.held[k]); /* locked before */
   i2m_dt_status_t st = cavity_seed(&s, seed, seed_meta);
   if (st == I2M_DT_OK) st = cavity_search(&s);
   search_store(&s);
@@ -576,7 +565,6 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
   if (!ctx->locking) i2m_dt_unlock_all(ctx); /* sequential: only the local numbering to undo */
   return I2M_DT_OK;
 }
-
 
 /* ---- point location ---- */
 

@@ -165,6 +165,16 @@ size_t i2m_current_rss_bytes(void);
 
 /* ---- small helpers ---- */
 #define I2M_PI 3.14159265358979323846
+
+/** One step of Marsaglia's xorshift64 (state non-zero): cheap reproducible randomness. */
+static inline uint64_t i2m_xorshift64(uint64_t *state)
+{
+  uint64_t x = *state;
+  x ^= x << 13;
+  x ^= x >> 7;
+  x ^= x << 17;
+  return *state = x;
+}
 static inline double i2m_sq(double x) { return x * x; }
 static inline int64_t i2m_min_i64(int64_t a, int64_t b) { return a < b ? a : b; }
 static inline int64_t i2m_max_i64(int64_t a, int64_t b) { return a > b ? a : b; }

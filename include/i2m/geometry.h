@@ -57,6 +57,9 @@ double i2m_tet_radius_edge(const double a[3], const double b[3], const double c[
 void i2m_tet_dihedral_angles(const double a[3], const double b[3], const double c[3], const double d[3],
                              double angles[6]);
 
+/** The smallest dihedral angle of tet abcd in degrees. */
+double i2m_tet_min_dihedral(const double a[3], const double b[3], const double c[3], const double d[3]);
+
 /** Cosines of the six dihedral angles of tet abcd (same edge order as the angles). */
 void i2m_tet_dihedral_cosines(const double a[3], const double b[3], const double c[3], const double d[3],
                               double cosines[6]);

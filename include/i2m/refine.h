@@ -106,6 +106,21 @@ const i2m_refine_params_t *i2m_refine_params(const i2m_refine_t *r);
 /** Statistics summed over the workers. */
 void i2m_refine_get_stats(const i2m_refine_t *r, i2m_refine_stats_t *s);
 
+/** What the sliver perturbation did (i2m_refine_perturb_slivers). */
+typedef struct {
+  int64_t slivers_before, slivers_after; /**< output tets below the bound */
+  double min_before, min_after;          /**< smallest dihedral angle of the output tets (degrees) */
+  int64_t tried, kept;                   /**< vertex moves tried and kept */
+  double seconds;
+} i2m_sliver_stats_t;
+
+/** Sliver perturbation, after refinement and before extraction (one thread, no other work
+ *  on the mesh): moves the vertices of the output tets whose smallest dihedral angle is below
+ *  @p bound degrees, worst first (surface vertices along their own interface patch), keeping
+ *  a move only when every changed tet passes the refinement rules and the changed tets'
+ *  smallest angle beats the vertex's old star, so every guarantee of refinement holds. */
+i2m_err_t i2m_refine_perturb_slivers(i2m_refine_t *r, double bound, i2m_sliver_stats_t *st);
+
 /* ---- for the threads layer: several workers on one triangulation ---- */
 
 /** Replaces the single worker by @p n workers (n >= 1; n > 1 lock vertices), moving the

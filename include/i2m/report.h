@@ -13,7 +13,16 @@ extern "C" {
 #endif
 
 /** Phases timed by the driver, in the order they run. */
-enum { I2M_PHASE_READ, I2M_PHASE_EDT, I2M_PHASE_REFINE, I2M_PHASE_EXTRACT, I2M_PHASE_WRITE, I2M_PHASE_QUALITY, I2M_NPHASES };
+enum {
+  I2M_PHASE_READ,
+  I2M_PHASE_EDT,
+  I2M_PHASE_REFINE,
+  I2M_PHASE_SLIVERS, /**< the optional sliver perturbation (0 s when off) */
+  I2M_PHASE_EXTRACT,
+  I2M_PHASE_WRITE,
+  I2M_PHASE_QUALITY,
+  I2M_NPHASES
+};
 
 /** Everything a run reports (all borrowed). */
 typedef struct {
@@ -31,6 +40,8 @@ typedef struct {
   int threads, ranks;
   const i2m_threads_report_t *team;  /**< per-thread figures, or NULL */
   const i2m_quality_t *quality;
+  double sliver_angle;               /**< the perturbation's bound (0: it did not run) */
+  i2m_sliver_stats_t slivers;        /**< what it did */
 } i2m_report_t;
 
 /** Name of a phase ("read", "distance_transform", ...). */

@@ -53,9 +53,15 @@ static i2m_err_t run_mesher(run_t *r)
   I2M_CALL(i2m_refine_create(r->img, r->edt, &o->params, &r->ref));
   i2m_threads_opts_t to = {o->threads, o->coarse_factor, !o->no_pin, o->deterministic != 0};
   I2M_CALL(i2m_threads_refine(r->ref, &to, &r->team));
+  if (o->sliver_angle > 0) { /* (the rules it applies read the grids: before they go) */
+    phase_end(r, I2M_PHASE_REFINE);
+    phase_begin(r, "sliver perturbation");
+    I2M_CALL(i2m_refine_perturb_slivers(r->ref, o->sliver_angle, &r->rep.slivers));
+    r->rep.sliver_angle = o->sliver_angle;
+  }
   if (o->check) I2M_CALL(i2m_dt_check(i2m_refine_dt(r->ref), true));
   i2m_refine_release_scratch(r->ref); /* the grids' memory, before extraction adds the mesh */
-  phase_end(r, I2M_PHASE_REFINE);
+  phase_end(r, o->sliver_angle > 0 ? I2M_PHASE_SLIVERS : I2M_PHASE_REFINE);
 
   phase_begin(r, "extraction");
   I2M_CALL(i2m_refine_repair_fragments(r->ref)); /* (asks the transform about the image) */

@@ -26,6 +26,8 @@ void cli_usage(FILE *f)
           "                        the process may use)\n"
           "  --coarse-factor F     a coarse mesh first, at F x delta and F x the size bounds (default 4)\n"
           "  --no-pin              do not bind the threads to cores\n"
+          "  --sliver-angle A      after refinement, move the vertices of tets whose smallest\n"
+          "                        dihedral angle is below A degrees (0-30; default 0: off)\n"
           "  --deterministic       the same mesh whatever the number of threads (tiles refined in\n"
           "                        turn instead of speculation with vertex locks)\n"
           "  --report FILE.json    write the run report as JSON\n"
@@ -127,6 +129,10 @@ static i2m_err_t parse_valued(const char *opt, const char *val, cli_options_t *o
   } else if (!strcmp(opt, "--coarse-factor")) {
     I2M_CALL(parse_double(opt, val, &o->coarse_factor));
     I2M_CHECK(o->coarse_factor >= 1, I2M_ERR_ARG, "--coarse-factor must be at least 1 (got %s)", val);
+  } else if (!strcmp(opt, "--sliver-angle")) {
+    I2M_CALL(parse_double(opt, val, &o->sliver_angle));
+    I2M_CHECK(o->sliver_angle >= 0 && o->sliver_angle <= 30, I2M_ERR_ARG,
+              "--sliver-angle must be between 0 and 30 degrees (got %s)", val);
   } else if (!strcmp(opt, "--threads")) {
     I2M_CALL(parse_int(opt, val, &iv));
     I2M_CHECK(iv >= 1 && iv <= 4096, I2M_ERR_ARG, "--threads must be between 1 and 4096 (got %s)", val);

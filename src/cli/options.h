@@ -13,6 +13,7 @@ typedef struct {
   i2m_region_t regions[I2M_MAX_LIST];
   int quiet, verbose, check, threads, no_pin, deterministic;
   double coarse_factor;
+  double sliver_angle; /* 0: no sliver perturbation */
   int help, version;
 } cli_options_t;
 

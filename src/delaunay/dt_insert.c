@@ -568,15 +568,7 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
 
 /* ---- point location ---- */
 
-static inline uint32_t rng_next(uint64_t *state)
-{
-  uint64_t x = *state;
-  x ^= x << 13;
-  x ^= x >> 7;
-  x ^= x << 17;
-  *state = x;
-  return (uint32_t)(x >> 32);
-}
+static inline uint32_t rng_next(uint64_t *state) { return (uint32_t)(i2m_xorshift64(state) >> 32); }
 
 /* The walk's random face order is seeded by the point itself: the walk is a function of the
  * mesh, the point and the start (the same on any thread, whatever it did before). */

@@ -161,6 +161,14 @@ void i2m_tet_dihedral_angles(const double a[3], const double b[3], const double 
   for (int e = 0; e < 6; e++) angles[e] = acos(cs[e]) * (180.0 / I2M_PI);
 }
 
+double i2m_tet_min_dihedral(const double a[3], const double b[3], const double c[3], const double d[3])
+{
+  double cs[6], cmax = -1.0; /* the smallest angle has the largest cosine: one acos */
+  i2m_tet_dihedral_cosines(a, b, c, d, cs);
+  for (int e = 0; e < 6; e++) cmax = cs[e] > cmax ? cs[e] : cmax;
+  return acos(cmax > 1.0 ? 1.0 : cmax) * (180.0 / I2M_PI);
+}
+
 int i2m_tri_circumcenter(const double a[3], const double b[3], const double c[3], double cc[3],
                          double *r2)
 {

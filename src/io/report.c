@@ -7,8 +7,8 @@
 
 const char *i2m_phase_name(int phase)
 {
-  static const char *names[I2M_NPHASES] = {"read", "distance_transform", "refinement", "extraction", "write",
-                                           "quality"};
+  static const char *names[I2M_NPHASES] = {"read",       "distance_transform", "refinement", "slivers",
+                                           "extraction", "write",              "quality"};
   return phase >= 0 && phase < I2M_NPHASES ? names[phase] : "?";
 }
 
@@ -33,6 +33,12 @@ void i2m_report_print(FILE *f, const i2m_report_t *r)
   if (r->stats.fragments)
     fprintf(f, "  fragments    %lld fragments (%lld tets) given a neighbour's label\n", (long long)r->stats.fragments,
             (long long)r->stats.fragment_tets);
+  if (r->sliver_angle > 0) {
+    const i2m_sliver_stats_t *v = &r->slivers;
+    fprintf(f, "  slivers      %lld -> %lld tets with a dihedral angle below %.3g deg (smallest %.3g -> %.3g deg); %lld of %lld vertex moves kept\n",
+            (long long)v->slivers_before, (long long)v->slivers_after, r->sliver_angle, v->min_before, v->min_after,
+            (long long)v->kept, (long long)v->tried);
+  }
   fprintf(f, "  time         ");
   for (int p = 0; p < I2M_NPHASES; p++) fprintf(f, "%s %.2f s, ", i2m_phase_name(p), r->phase_seconds[p]);
   fprintf(f, "total %.2f s\n", r->total_seconds);
@@ -147,6 +153,13 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
   fprintf(f, "\"rules\": {\"R1\": %lld, \"R2\": %lld, \"R3\": %lld, \"R4\": %lld, \"R5\": %lld, \"R6\": %lld, \"R7\": %lld}},\n",
           (long long)s->rule[1], (long long)s->rule[2], (long long)s->rule[3], (long long)s->rule[4],
           (long long)s->rule[5], (long long)s->rule[6], (long long)s->rule[7]);
+  if (r->sliver_angle > 0) {
+    const i2m_sliver_stats_t *v = &r->slivers;
+    fprintf(f, "  \"slivers\": {\"angle\": %.6g, \"before\": %lld, \"after\": %lld, \"min_dihedral_before\": %.6g, "
+               "\"min_dihedral_after\": %.6g, \"moves_tried\": %lld, \"moves_kept\": %lld},\n",
+            r->sliver_angle, (long long)v->slivers_before, (long long)v->slivers_after, v->min_before, v->min_after,
+            (long long)v->tried, (long long)v->kept);
+  }
   fprintf(f, "  \"time_seconds\": {");
   for (int p = 0; p < I2M_NPHASES; p++) fprintf(f, "\"%s\": %.4f, ", i2m_phase_name(p), r->phase_seconds[p]);
   fprintf(f, "\"total\": %.4f},\n", r->total_seconds);

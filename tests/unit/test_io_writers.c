@@ -629,6 +629,7 @@ static void test_fidelity_missing_label(void)
   CU_ASSERT_EQUAL(f.worst_pair[0], 0);
   CU_ASSERT_EQUAL(f.worst_pair[1], 1300000);
   CU_ASSERT_EQUAL(f.worst_component[1], 1);
+  CU_ASSERT_DOUBLE_EQUAL(f.worst_thinnest[1], 0.5, 1e-12); /* one voxel along j (spacing 0.5) */
   CU_ASSERT(f.image_to_mesh.max > 1.0);
   CU_ASSERT_DOUBLE_EQUAL(f.mesh_to_image.max, 0.0, 1e-12);
   ck_fidelity_free(&f);

@@ -125,6 +125,9 @@ typedef struct {
   ck_dist_t mesh_to_image, image_to_mesh, two_sided;
   int64_t worst_pair[2];       /* label values on the two sides of the worst image face */
   int64_t worst_component[2];  /* voxel counts of their 6-connected components (0: outside) */
+  double worst_thinnest[2];    /* mm: the shortest run of their label through each side's voxel
+                                * along an image axis (a spike or sheet finer than delta cannot
+                                * be followed, however large its component) */
   int nlabels;
   ck_label_t *labels;          /* owned: [nlabels] union of image and mesh labels (no 0) */
   int64_t missing_labels;      /* image labels absent from the mesh */

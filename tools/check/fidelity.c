@@ -661,6 +661,23 @@ static i2m_err_t build_tri_grid(const tctx_t *tc, int64_t ntri, double min_h, gr
   return grid_build(g, ntri, tri_bbox, tc);
 }
 
+/* The shortest run, in mm, of voxel c's label through c along one of the image axes (0 for a
+ * voxel outside the image). */
+static double thinnest_run(const i2m_image_t *img, const int64_t c[3])
+{
+  if (c[0] < 0 || c[1] < 0 || c[2] < 0 || c[0] >= img->n[0] || c[1] >= img->n[1] || c[2] >= img->n[2]) return 0;
+  const int l = i2m_image_label_voxel(img, c[0], c[1], c[2]);
+  double best = INFINITY;
+  for (int a = 0; a < 3; a++) {
+    int64_t n = 1, q[3] = {c[0], c[1], c[2]};
+    for (q[a] = c[a] - 1; q[a] >= 0 && i2m_image_label_voxel(img, q[0], q[1], q[2]) == l; q[a]--) n++;
+    for (q[a] = c[a] + 1; q[a] < img->n[a] && i2m_image_label_voxel(img, q[0], q[1], q[2]) == l; q[a]++) n++;
+    const double len = (double)n * img->spacing[a];
+    best = len < best ? len : best;
+  }
+  return best;
+}
+
 static void worst_face(const i2m_image_t *img, i2m_components_t *runs, const vface_t *fc, ck_fidelity_t *f)
 {
   int64_t c0[3] = {fc->c[0], fc->c[1], fc->c[2]}, c1[3] = {fc->c[0], fc->c[1], fc->c[2]};
@@ -675,6 +692,9 @@ static void worst_face(const i2m_image_t *img, i2m_components_t *runs, const vfa
   f->worst_pair[1] = sw ? v0 : v1;
   f->worst_component[0] = sw ? s1 : s0;
   f->worst_component[1] = sw ? s0 : s1;
+  const double w0 = thinnest_run(img, c0), w1 = thinnest_run(img, c1);
+  f->worst_thinnest[0] = sw ? w1 : w0;
+  f->worst_thinnest[1] = sw ? w0 : w1;
 }
 
 i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image_t *img,

@@ -154,9 +154,10 @@ static void json_fidelity(FILE *f, const ck_fidelity_t *x)
   json_dist(f, "mesh_to_image", &x->mesh_to_image, sp, 0);
   json_dist(f, "image_to_mesh", &x->image_to_mesh, sp, 0);
   json_dist(f, "hausdorff", &x->two_sided, sp, 0);
-  fprintf(f, "\"worst_image_face\": {\"labels\": [%lld, %lld], \"component_voxels\": [%lld, %lld]}, ",
-          (long long)x->worst_pair[0], (long long)x->worst_pair[1],
-          (long long)x->worst_component[0], (long long)x->worst_component[1]);
+  fprintf(f, "\"worst_image_face\": {\"labels\": [%lld, %lld], \"component_voxels\": [%lld, %lld], "
+             "\"thinnest_run_mm\": [%.6g, %.6g]}, ",
+          (long long)x->worst_pair[0], (long long)x->worst_pair[1], (long long)x->worst_component[0],
+          (long long)x->worst_component[1], x->worst_thinnest[0], x->worst_thinnest[1]);
   JI(f, "missing_labels", x->missing_labels, 0);
   JI(f, "extra_labels", x->extra_labels, 0);
   JI(f, "image_components", x->image_components_total, 0);
@@ -312,9 +313,9 @@ static void text_fidelity(FILE *f, const ck_fidelity_t *x)
   text_dist(f, "mesh->image", &x->mesh_to_image, x->min_spacing);
   text_dist(f, "image->mesh", &x->image_to_mesh, x->min_spacing);
   text_dist(f, "two-sided", &x->two_sided, x->min_spacing);
-  fprintf(f, "  worst image face: labels %lld|%lld, their components %lld|%lld voxels\n",
-          (long long)x->worst_pair[0], (long long)x->worst_pair[1],
-          (long long)x->worst_component[0], (long long)x->worst_component[1]);
+  fprintf(f, "  worst image face: labels %lld|%lld, their components %lld|%lld voxels, thinnest runs through it %.3g|%.3g mm\n",
+          (long long)x->worst_pair[0], (long long)x->worst_pair[1], (long long)x->worst_component[0],
+          (long long)x->worst_component[1], x->worst_thinnest[0], x->worst_thinnest[1]);
   fprintf(f, "  labels: %d, missing from the mesh %lld, not in the image %lld\n", x->nlabels,
           (long long)x->missing_labels, (long long)x->extra_labels);
   fprintf(f, "  %8s %10s %12s %12s %9s %8s %8s %8s\n", "label", "voxels", "image mm3", "mesh mm3",

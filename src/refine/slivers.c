@@ -18,21 +18,37 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define MOVES_PER_VERTEX 8 /* random targets tried per vertex of a sliver */
-#define ROUNDS 3           /* passes over the slivers left */
+#define MOVES_PER_VERTEX 16 /* random targets tried per vertex of a sliver */
+#define ROUNDS 6           /* passes over the slivers left */
 
 typedef struct {
   i2m_refine_worker_t w; /* a sequential worker: its kernel context and rule evaluation */
   uint32_t *star, nstar, cap_star;
   uint32_t *changed, nchanged, cap_changed;
+  uint32_t *touched, ntouched, cap_touched; /* tets made by the moves kept in this round */
   uint64_t rng;
   i2m_sliver_stats_t st;
 } perturb_t;
 
+/* A sliver, with its vertices' global ids in increasing order: the order of the work (and so
+ * of the random moves) then depends on the mesh, not on its slot numbers, and the pass gives
+ * the same mesh in the deterministic mode whatever the number of threads. */
 typedef struct {
   uint32_t t, meta;
   double angle;
+  i2m_gidx_t gid[4];
 } sliver_t;
+
+static void sort4_gid(i2m_gidx_t g[4], uint32_t v[4])
+{
+  for (int i = 1; i < 4; i++)
+    for (int j = i; j > 0 && g[j] < g[j - 1]; j--) {
+      const i2m_gidx_t x = g[j];
+      const uint32_t y = v[j];
+      g[j] = g[j - 1], g[j - 1] = x;
+      v[j] = v[j - 1], v[j - 1] = y;
+    }
+}
 
 static double uniform01(uint64_t *s) { return (double)(i2m_xorshift64(s) >> 11) * 0x1.0p-53; }
 
@@ -141,6 +157,17 @@ static bool changed_ok(perturb_t *P, double floor)
   return true;
 }
 
+/* The live tets that a move made (kept or undone: undoing restores the tets, not their slots)
+ * join the tets the next round looks at. */
+static i2m_err_t note_touched(perturb_t *P)
+{
+  const i2m_dt_t *dt = P->w.r->dt;
+  I2M_CALL(grow_list(&P->touched, &P->cap_touched, P->ntouched + P->nchanged));
+  for (uint32_t k = 0; k < P->nchanged; k++)
+    if (i2m_dt_alive(dt, P->changed[k])) P->touched[P->ntouched++] = P->changed[k];
+  return I2M_OK;
+}
+
 /* One attempt: vertex *v to p (the same kind, global id and patch).  Kept when changed_ok;
  * otherwise the vertex goes back to where it was (the same triangulation).  *v is the
  * vertex's slot afterwards.  Returns 1 when kept, 0 when not, -1 on an error. */
@@ -163,7 +190,7 @@ static int try_move(perturb_t *P, uint32_t *v, const double p[3], double floor)
   if (st == I2M_DT_OK && changed_ok(P, floor)) {
     P->st.kept++;
     *v = moved;
-    return 1;
+    return note_touched(P) == I2M_OK ? 1 : -1;
   }
   /* back: take the moved vertex out again (when it went in), then the old point in */
   P->nchanged = 0;
@@ -171,7 +198,8 @@ static int try_move(perturb_t *P, uint32_t *v, const double p[3], double floor)
     if (take_out(P, moved) != I2M_DT_OK) return -1;
     start = P->w.ctx.newt[0];
   }
-  return put_in(P, x0, gid, kind, tag, start, v) == I2M_DT_OK ? 0 : -1;
+  if (put_in(P, x0, gid, kind, tag, start, v) != I2M_DT_OK) return -1;
+  return note_touched(P) == I2M_OK ? 0 : -1; /* (the same tets, maybe in other slots) */
 }
 
 /* A surface vertex stays on its interface patch: p becomes the closest interface point to p,
@@ -188,29 +216,74 @@ static bool onto_patch(const i2m_refine_t *r, uint32_t patch, double p[3])
 static int cmp_sliver(const void *x, const void *y)
 {
   const sliver_t *a = x, *b = y;
-  return (a->angle > b->angle) - (a->angle < b->angle);
+  if (a->angle != b->angle) return (a->angle > b->angle) - (a->angle < b->angle);
+  for (int i = 0; i < 4; i++)
+    if (a->gid[i] != b->gid[i]) return (a->gid[i] > b->gid[i]) - (a->gid[i] < b->gid[i]);
+  return 0;
 }
 
-/* The output tets below the bound, worst first; the smallest angle of all output tets. */
-static i2m_err_t collect(const i2m_refine_t *r, double bound, sliver_t **out, size_t *n, double *min_all)
+typedef struct {
+  sliver_t *a;
+  size_t n, cap;
+} sliver_list_t;
+
+/* Tet t joins the list when it is an output tet below the bound. */
+static i2m_err_t consider(const i2m_dt_t *dt, uint32_t t, double bound, sliver_list_t *L)
+{
+  if (!tet_kept(dt, t)) return I2M_OK;
+  const double a = tet_min_dihedral(dt, t);
+  if (!(a < bound)) return I2M_OK;
+  if (L->n == L->cap) {
+    L->cap = L->cap ? 2 * L->cap : 1024;
+    I2M_CALL(i2m_realloc(L->cap, sizeof *L->a, &L->a));
+  }
+  sliver_t *s = &L->a[L->n++];
+  *s = (sliver_t){t, i2m_dt_meta(dt, t), a, {0}};
+  uint32_t v[4];
+  memcpy(v, dt->tv + 4 * (size_t)t, sizeof v);
+  for (int i = 0; i < 4; i++) s->gid[i] = i2m_dt_gid(dt, v[i]);
+  sort4_gid(s->gid, v);
+  return I2M_OK;
+}
+
+/* The output tets below the bound, and the smallest angle of all output tets. */
+static i2m_err_t collect_all(const i2m_refine_t *r, double bound, sliver_list_t *L, double *min_all)
 {
   const i2m_dt_t *dt = r->dt;
   const uint32_t nt = i2m_dt_ntets_slots(dt);
-  size_t cap = 0;
-  *n = 0;
+  L->n = 0;
   *min_all = 180.0;
   for (uint32_t t = 0; t < nt; t++) {
     if (!tet_kept(dt, t)) continue;
     const double a = tet_min_dihedral(dt, t);
     if (a < *min_all) *min_all = a;
-    if (!(a < bound)) continue;
-    if (*n == cap) {
-      cap = cap ? 2 * cap : 1024;
-      I2M_CALL(i2m_realloc(cap, sizeof **out, out));
-    }
-    (*out)[(*n)++] = (sliver_t){t, i2m_dt_meta(dt, t), a};
+    if (a < bound) I2M_CALL(consider(dt, t, bound, L));
   }
-  if (*n > 1) qsort(*out, *n, sizeof **out, cmp_sliver);
+  return I2M_OK;
+}
+
+static int cmp_u32(const void *x, const void *y)
+{
+  const uint32_t a = *(const uint32_t *)x, b = *(const uint32_t *)y;
+  return (a > b) - (a < b);
+}
+
+/* The same list after a round, without a pass over the mesh: a tet no move changed has its
+ * angle still, so the slivers left are the list's untouched ones (same slot generation) and
+ * the tets the moves made (each slot once; a made slot is newer than the list's entries). */
+static i2m_err_t collect_after_round(perturb_t *P, double bound, sliver_list_t *L)
+{
+  const i2m_dt_t *dt = P->w.r->dt;
+  size_t n = 0;
+  for (size_t k = 0; k < L->n; k++)
+    if (i2m_dt_meta(dt, L->a[k].t) == L->a[k].meta) L->a[n++] = L->a[k];
+  L->n = n;
+  if (P->ntouched > 1) qsort(P->touched, P->ntouched, sizeof *P->touched, cmp_u32);
+  for (uint32_t k = 0; k < P->ntouched; k++) {
+    const uint32_t t = P->touched[k];
+    if (k == 0 || P->touched[k - 1] != t) I2M_CALL(consider(dt, t, bound, L));
+  }
+  P->ntouched = 0;
   return I2M_OK;
 }
 
@@ -221,7 +294,10 @@ static int treat_sliver(perturb_t *P, const sliver_t *s)
   i2m_dt_t *dt = P->w.r->dt;
   if (i2m_dt_meta(dt, s->t) != s->meta) return 0; /* changed by an earlier move */
   uint32_t verts[4];
+  i2m_gidx_t gid[4];
   memcpy(verts, dt->tv + 4 * (size_t)s->t, sizeof verts);
+  for (int i = 0; i < 4; i++) gid[i] = i2m_dt_gid(dt, verts[i]);
+  sort4_gid(gid, verts); /* in the order of their global ids */
   for (int i = 0; i < 4; i++) {
     uint32_t v = verts[i];
     const bool surface = dt->vkind[v] == I2M_VK_SURFACE;
@@ -263,30 +339,28 @@ i2m_err_t i2m_refine_perturb_slivers(i2m_refine_t *r, double bound, i2m_sliver_s
 {
   const double t0 = i2m_wtime();
   perturb_t *P = NULL;
-  sliver_t *sl = NULL;
-  size_t n = 0;
+  sliver_list_t L = {0};
   I2M_CALL(i2m_calloc(1, sizeof *P, &P));
   i2m_err_t err = worker_init(&P->w, r, (uint32_t)r->nworkers + 1, false); /* (an owner no worker has) */
   i2m_progress_t progress;
   i2m_progress_begin(&progress, "sliver perturbation", "vertex moves");
   P->rng = 0x9E3779B97F4A7C15ull ^ r->p.seed;
   double min_all = 180.0;
-  for (int round = 0; round < ROUNDS && err == I2M_OK; round++) {
-    err = collect(r, bound, &sl, &n, &min_all);
-    if (round == 0) {
-      P->st.slivers_before = (int64_t)n;
-      P->st.min_before = min_all;
-    }
-    if (err != I2M_OK || n == 0) break;
+  if (err == I2M_OK) err = collect_all(r, bound, &L, &min_all);
+  P->st.slivers_before = (int64_t)L.n;
+  P->st.min_before = min_all;
+  for (int round = 0; round < ROUNDS && err == I2M_OK && L.n > 0; round++) {
+    if (round > 0) err = collect_after_round(P, bound, &L);
+    if (L.n > 1) qsort(L.a, L.n, sizeof *L.a, cmp_sliver); /* worst first */
     const int64_t kept0 = P->st.kept;
-    for (size_t k = 0; k < n && err == I2M_OK; k++) {
-      if (treat_sliver(P, &sl[k]) < 0) err = I2M_ERROR(I2M_ERR_INTERNAL, "sliver perturbation: a vertex could not be moved back");
+    for (size_t k = 0; k < L.n && err == I2M_OK; k++) {
+      if (treat_sliver(P, &L.a[k]) < 0) err = I2M_ERROR(I2M_ERR_INTERNAL, "sliver perturbation: a vertex could not be moved back");
       i2m_progress_update(&progress, P->st.tried);
     }
     if (P->st.kept == kept0) break;
   }
-  if (err == I2M_OK) err = collect(r, bound, &sl, &n, &min_all);
-  P->st.slivers_after = (int64_t)n;
+  if (err == I2M_OK) err = collect_all(r, bound, &L, &min_all);
+  P->st.slivers_after = (int64_t)L.n;
   P->st.min_after = min_all;
   P->st.seconds = i2m_wtime() - t0;
   i2m_progress_end(&progress, P->st.tried);
@@ -294,8 +368,9 @@ i2m_err_t i2m_refine_perturb_slivers(i2m_refine_t *r, double bound, i2m_sliver_s
   worker_free(&P->w);
   i2m_free(&P->star);
   i2m_free(&P->changed);
+  i2m_free(&P->touched);
   if (out) *out = P->st;
   i2m_free(&P);
-  i2m_free(&sl);
+  i2m_free(&L.a);
   return err;
 }

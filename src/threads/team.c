@@ -418,6 +418,8 @@ static int team_size(int T)
   return got;
 }
 
+void i2m_threads_use(int n) { omp_set_num_threads(n >= 1 ? n : 1); }
+
 i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep)
 {
   int T = team_size(o->threads > 0 ? o->threads : i2m_threads_default());

@@ -3,6 +3,7 @@
  * volumes that agree across thread counts; many threads on a tiny image (maximum
  * contention) terminate; capacity growth pauses work; the coarse phase keeps the bounds. */
 #include <math.h>
+#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -168,10 +169,28 @@ static void test_deterministic_mode(void)
   i2m_image_destroy(&img);
 }
 
+/* i2m_threads_use(n): the OpenMP phases after it (distance transform, extraction, quality)
+ * run on n threads, whatever the runtime's default. */
+static void test_threads_use(void)
+{
+  for (int n = 1; n <= 3; n++) {
+    i2m_threads_use(n);
+    int seen = 0;
+#pragma omp parallel
+    {
+#pragma omp single
+      seen = omp_get_num_threads();
+    }
+    CU_ASSERT_EQUAL(seen, n);
+  }
+  i2m_threads_use(i2m_threads_default());
+}
+
 static const test_case_t cases[] = {
     {"deterministic mode: 1, 2, 4 threads give the same triangulation", test_deterministic_mode},
     {"1, 2, 4 threads: valid, guarantees, volumes agree", test_thread_counts_agree},
     {"8 threads on a tiny image (maximum contention)", test_max_contention},
     {"capacity growth pauses, coarse phase", test_growth_pauses_and_coarse_phase},
+    {"--threads n holds for every OpenMP phase", test_threads_use},
 };
 TEST_MAIN("threaded refinement", cases)

@@ -45,10 +45,10 @@ int i2m_threads_available(void);
  *  the cores the process may use. */
 int i2m_threads_default(void);
 
-/** Makes n (>= 1) threads the default of every later OpenMP phase (distance transform,
- *  extraction, quality figures), so a process asked for n threads uses n throughout, not the
- *  runtime's default of every hardware thread. */
-void i2m_threads_use(int n);
+/** Caps every later OpenMP phase (distance transform, extraction, quality figures) at n
+ *  (>= 1) threads, below the runtime's default (OMP_NUM_THREADS, else every hardware
+ *  thread): a process asked for n threads uses at most n in any phase. */
+void i2m_threads_limit(int n);
 
 /** Refines to completion on o->threads threads (all rules, both phases).  Not collective. */
 i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep);

@@ -159,7 +159,7 @@ int main(int argc, char **argv)
     return 2;
   }
   i2m_log_set_level(r.opt.quiet ? I2M_LOG_QUIET : r.opt.verbose ? I2M_LOG_DEBUG : I2M_LOG_INFO);
-  if (r.opt.threads > 0) i2m_threads_use(r.opt.threads); /* every phase, not only refinement */
+  if (r.opt.threads > 0) i2m_threads_limit(r.opt.threads); /* every phase, not only refinement */
   i2m_err_t err = run_mesher(&r);
   if (err == I2M_OK) err = report(&r);
   if (err != I2M_OK) fprintf(stderr, "i2m: %s\n", i2m_error_message());

@@ -65,24 +65,27 @@ static void boundary_box(const i2m_image_t *img, int64_t lo[3], int64_t hi[3])
 
 /* One 1-D pass of the squared distance transform along a line of n voxels with spacing w:
  * f[q] is the squared distance carried in from earlier passes (INFINITY: no feature),
- * out_arg[x] receives the q minimising f[q] + (w (x - q))^2.  v, z: scratch of n and n+1. */
-static void envelope_1d(const double *f, int64_t n, double w, int64_t *v, double *z, int64_t *out_arg)
+ * out_arg[x] receives the q minimising f[q] + (w (x - q))^2.  v, z, g: scratch of n, n+1
+ * and n.  The parabola of q has its lift g[q] = f[q] + (w q)^2 computed once, and the
+ * intersection that stops the pops is the new breakpoint (one division per test). */
+static void envelope_1d(const double *f, int64_t n, double w, int64_t *v, double *z, double *g, int64_t *out_arg)
 {
   int64_t k = -1;
   double w2 = w * w;
   for (int64_t q = 0; q < n; q++) {
     if (!isfinite(f[q])) continue;
-    double fq = f[q] + w2 * (double)q * (double)q;
+    const double fq = f[q] + w2 * (double)q * (double)q;
+    g[q] = fq;
+    double s = -INFINITY;
     while (k >= 0) {
       int64_t p = v[k];
-      double s = (fq - (f[p] + w2 * (double)p * (double)p)) / (2.0 * w2 * (double)(q - p));
+      s = (fq - g[p]) / (2.0 * w2 * (double)(q - p));
       if (s > z[k]) break;
       k--;
     }
     k++;
     v[k] = q;
-    z[k] = k == 0 ? -INFINITY : ((fq - (f[v[k - 1]] + w2 * (double)v[k - 1] * (double)v[k - 1])) /
-                                 (2.0 * w2 * (double)(q - v[k - 1])));
+    z[k] = k == 0 ? -INFINITY : s;
     z[k + 1] = INFINITY;
   }
   if (k < 0) {
@@ -141,7 +144,9 @@ static void edt_pass_rows(i2m_edt_t *e)
 /* Passes along axes 1 and 2: each voxel takes the best feature among the line's voxels'
  * current features (lower envelope of parabolas).  The feature of voxel q of the line lies
  * in the same (ax = q) slab, so its distance is that of the components along the earlier
- * axes only. */
+ * axes only, read off the index difference: along axis 1 the feature is on the voxel's own
+ * row (the difference is the offset along axis 0); along axis 2 it is in the voxel's own
+ * slice, whose in-slice index gives both offsets with one division. */
 static i2m_err_t edt_pass(i2m_edt_t *e, int ax)
 {
   const int64_t *m = e->m;
@@ -149,37 +154,44 @@ static i2m_err_t edt_pass(i2m_edt_t *e, int ax)
   int64_t n = m[ax], nlines = m[0] * m[1] * m[2] / n;
   const double *sp = e->img->spacing;
   double s0 = sp[0] * sp[0], s1 = sp[1] * sp[1];
+  const uint32_t m0 = (uint32_t)m[0];
   int failed = 0;
   I2M_OMP(omp parallel reduction(| : failed))
   {
     double *f = malloc((size_t)n * sizeof *f), *z = malloc((size_t)(n + 1) * sizeof *z);
+    double *g = malloc((size_t)n * sizeof *g);
     int64_t *v = malloc((size_t)n * sizeof *v), *arg = malloc((size_t)n * sizeof *arg);
     int32_t *feat = malloc((size_t)n * sizeof *feat);
-    if (!f || !z || !v || !arg || !feat) failed = 1;
+    if (!f || !z || !g || !v || !arg || !feat) failed = 1;
     I2M_OMP(omp for schedule(dynamic, 64))
     for (int64_t line = 0; line < nlines; line++) {
       if (failed) continue;
       /* line start: axis 1 lines are indexed by (i, k), axis 2 lines by (i, j) */
       int64_t base = ax == 1 ? (line % m[0]) + (line / m[0]) * m[0] * m[1] : line;
-      uint32_t c[3];
-      box_coords(e, (uint32_t)base, c);
+      const int64_t i0 = line % m[0], j0 = ax == 2 ? line / m[0] : 0;
       for (int64_t q = 0; q < n; q++) {
-        int32_t fq = e->ft[base + q * stride];
+        const int64_t idx = base + q * stride;
+        int32_t fq = e->ft[idx];
         feat[q] = fq;
         if (fq < 0) {
           f[q] = INFINITY;
           continue;
         }
-        uint32_t fc[3];
-        box_coords(e, (uint32_t)fq, fc);
-        double d0 = (double)fc[0] - (double)c[0], d1 = (double)fc[1] - (double)c[1];
-        f[q] = s0 * d0 * d0 + (ax == 2 ? s1 * d1 * d1 : 0.0);
+        if (ax == 1) {
+          const double d0 = (double)(fq - idx);
+          f[q] = s0 * d0 * d0;
+        } else {
+          const uint32_t in_slice = (uint32_t)(fq - q * stride), fj = div_fast(in_slice, m0, e->inv_m[0]);
+          const double d0 = (double)((int64_t)(in_slice - fj * m0) - i0), d1 = (double)((int64_t)fj - j0);
+          f[q] = s0 * d0 * d0 + s1 * d1 * d1;
+        }
       }
-      envelope_1d(f, n, sp[ax], v, z, arg);
+      envelope_1d(f, n, sp[ax], v, z, g, arg);
       for (int64_t x = 0; x < n; x++) e->ft[base + x * stride] = arg[x] < 0 ? -1 : feat[arg[x]];
     }
     free(f);
     free(z);
+    free(g);
     free(v);
     free(arg);
     free(feat);

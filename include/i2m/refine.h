@@ -114,11 +114,12 @@ typedef struct {
   double seconds;
 } i2m_sliver_stats_t;
 
-/** Sliver perturbation, after refinement and before extraction (one thread, no other work
- *  on the mesh): moves the vertices of the output tets whose smallest dihedral angle is below
- *  @p bound degrees, worst first (surface vertices along their own interface patch), keeping
- *  a move only when every changed tet passes the refinement rules and the changed tets'
- *  smallest angle beats the vertex's old star, so every guarantee of refinement holds. */
+/** Sliver perturbation, after refinement and before extraction (no other work on the mesh):
+ *  moves the vertices of the output tets whose smallest dihedral angle is below @p bound
+ *  degrees, worst first (surface vertices along their own interface patch), keeping a move
+ *  only when every changed tet passes the refinement rules and the changed tets' smallest
+ *  angle beats the vertex's old star, so every guarantee of refinement holds.  On the calling
+ *  thread; i2m_threads_perturb_slivers runs the same work, with the same result, on threads. */
 i2m_err_t i2m_refine_perturb_slivers(i2m_refine_t *r, double bound, i2m_sliver_stats_t *st);
 
 /* ---- for the threads layer: several workers on one triangulation ---- */
@@ -183,6 +184,26 @@ i2m_err_t i2m_refine_tiling_merge(i2m_refine_t *r);
 i2m_err_t i2m_refine_tiling_sequential(i2m_refine_t *r);
 /** Tile side (mm), rounds and sequential operations so far (0 without a tiling). */
 void i2m_refine_tiling_figures(const i2m_refine_t *r, double *side, int64_t *rounds, int64_t *sequential_ops);
+
+/* ---- for the threads layer: the sliver perturbation on the tiles (src/refine/slivers.c);
+ * every call not marked thread safe runs alone ---- */
+
+/** Lists the slivers and cuts the block into tiles (the workers stop taking locks). */
+i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound);
+/** Is another round worth it (slivers left, the last round kept a move, rounds left)? */
+bool i2m_refine_slivers_has_work(const i2m_refine_t *r);
+/** The tiles of colour @p color (0..7) with slivers this round, each with slots granted. */
+i2m_err_t i2m_refine_slivers_phase(i2m_refine_t *r, int color, const uint32_t **tiles, uint32_t *ntiles);
+/** Worker k treats tile id's slivers inside its zone (thread safe across different k and
+ *  tiles of one phase). */
+i2m_err_t i2m_refine_tile_slivers(i2m_refine_t *r, int k, uint32_t id);
+/** The barrier after a phase: the tiles' unused slots go back. */
+i2m_err_t i2m_refine_slivers_merge(i2m_refine_t *r);
+/** The end of a round: worker 0 treats, in order, the slivers no zone could hold. */
+i2m_err_t i2m_refine_slivers_sequential(i2m_refine_t *r);
+/** Counts what is left, frees the tiles; *st (may be NULL) gets the figures.  Accepts a pass
+ *  that failed. */
+i2m_err_t i2m_refine_slivers_end(i2m_refine_t *r, i2m_sliver_stats_t *st);
 
 /** After refinement: frees the spatial grids and the workers' scratch (extraction, stats and
  *  parameters stay usable; the transform is asked only by i2m_refine_repair_fragments). */

@@ -54,6 +54,11 @@ void i2m_threads_limit(int n);
 i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep);
 void i2m_threads_report_free(i2m_threads_report_t *rep);
 
+/** The sliver perturbation (i2m_refine_perturb_slivers) on the threads that refined (the
+ *  tiles of one colour at a time): the same mesh whatever their number.  Not collective. */
+i2m_err_t i2m_threads_perturb_slivers(i2m_refine_t *r, const i2m_threads_opts_t *o, double bound,
+                                      i2m_sliver_stats_t *st);
+
 #ifdef __cplusplus
 }
 #endif

@@ -56,7 +56,7 @@ static i2m_err_t run_mesher(run_t *r)
   if (o->sliver_angle > 0) { /* (the rules it applies read the grids: before they go) */
     phase_end(r, I2M_PHASE_REFINE);
     phase_begin(r, "sliver perturbation");
-    I2M_CALL(i2m_refine_perturb_slivers(r->ref, o->sliver_angle, &r->rep.slivers));
+    I2M_CALL(i2m_threads_perturb_slivers(r->ref, &to, o->sliver_angle, &r->rep.slivers));
     r->rep.sliver_angle = o->sliver_angle;
   }
   if (o->check) I2M_CALL(i2m_dt_check(i2m_refine_dt(r->ref), true));

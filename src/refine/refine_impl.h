@@ -179,6 +179,7 @@ struct i2m_refine {
   i2m_refine_worker_t *workers; /* owned: [nworkers] */
   int nworkers;
   int64_t fragments, fragment_tets; /* fragments relabelled (fragments.c) */
+  struct sliver_pass *slivers;      /* owned: the sliver perturbation under way (slivers.c), or NULL */
 };
 
 /* classify.c */
@@ -247,6 +248,12 @@ i2m_err_t tiles_route(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t me
 /** Deterministic mode: the element cannot be done in the tile's zone: the sequential pass
  *  will do it (level -1: the pending removal pv). */
 i2m_err_t tiles_defer(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t meta, pending_t pv);
+/** The tile that holds tet t's centroid, and a tile's colour (0..7). */
+uint32_t tiles_tile_of_tet(const i2m_refine_t *r, uint32_t t);
+int tiles_color(const tiling_t *g, uint32_t id);
+/** Worker w takes tile id's lists, slots and zone (and gives them back). */
+void tiles_bind(i2m_refine_worker_t *w, uint32_t id);
+void tiles_unbind(i2m_refine_worker_t *w);
 /** Is world point x in the zone of the worker's tile (always, without a tile)? */
 bool tiles_zone_holds(const i2m_refine_worker_t *w, const double x[3]);
 /** Does the ball (centre c, squared radius r2) lie in that zone (always, without a tile)? */

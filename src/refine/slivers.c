@@ -12,32 +12,60 @@
  * closest point of its own interface patch to a random nearby point, so it stays on the
  * interface: the worst slivers are flat tets of four surface vertices on a planar stretch of
  * voxel faces (four nearly cocircular points), which only such a move can lift.  Every rule
- * holds after every kept move, so every guarantee of refinement holds at the end. */
+ * holds after every kept move, so every guarantee of refinement holds at the end.
+ *
+ * The work runs on the deterministic mode's tiles (tiles.c): in each round, the slivers of
+ * the tiles of one colour at a time, each tile by one thread inside its zone, then a
+ * sequential pass for the slivers whose move could not stay in a zone.  A tile's slivers are
+ * treated in the order of their angle and their vertices' global ids, with random moves
+ * drawn from a generator seeded by the round and the tile: the result depends on the mesh
+ * only, not on the number of threads or on slot numbers. */
 #include "refine_impl.h"
 
 #include <stdlib.h>
 #include <string.h>
 
-#define MOVES_PER_VERTEX 16 /* random targets tried per vertex of a sliver */
-#define ROUNDS 6           /* passes over the slivers left */
+#define MOVES_PER_VERTEX 8 /* random targets tried per vertex of a sliver */
+#define ROUNDS 10          /* rounds over the slivers left (later ones are short) */
+#define WALK_STEPS 64      /* a target farther than this from the vertex's old star: deferred */
 
-typedef struct {
-  i2m_refine_worker_t w; /* a sequential worker: its kernel context and rule evaluation */
-  uint32_t *star, nstar, cap_star;
-  uint32_t *changed, nchanged, cap_changed;
-  uint32_t *touched, ntouched, cap_touched; /* tets made by the moves kept in this round */
-  uint64_t rng;
-  i2m_sliver_stats_t st;
-} perturb_t;
-
-/* A sliver, with its vertices' global ids in increasing order: the order of the work (and so
- * of the random moves) then depends on the mesh, not on its slot numbers, and the pass gives
- * the same mesh in the deterministic mode whatever the number of threads. */
+/* A sliver, with its vertices' global ids in increasing order (the order of the work). */
 typedef struct {
   uint32_t t, meta;
   double angle;
   i2m_gidx_t gid[4];
 } sliver_t;
+
+typedef struct {
+  sliver_t *a;
+  size_t n, cap;
+} sliver_list_t;
+
+/* One thread's working set. */
+typedef struct {
+  i2m_refine_worker_t *w; /* its worker: kernel context and rule evaluation */
+  uint32_t *star, nstar, cap_star;
+  uint32_t *changed, nchanged, cap_changed;
+  uint32_t *touched, ntouched, cap_touched; /* tets the moves of this round made */
+  sliver_list_t deferred;                   /* slivers a zone could not hold */
+  uint64_t rng;
+  int64_t tried, kept;
+} perturb_t;
+
+struct sliver_pass {
+  double bound, t0;
+  int round;
+  int64_t kept_before_round;
+  perturb_t *per;        /* [nworkers] */
+  sliver_list_t list;    /* the round's slivers, in order */
+  uint32_t *first;       /* [ntiles + 1]: tile id's slivers are by_tile[first[id] .. first[id + 1]) */
+  sliver_t *by_tile;     /* [list.n] */
+  uint32_t *active, nactive;
+  i2m_sliver_stats_t st;
+  i2m_progress_t progress;
+};
+
+enum { MOVE_ERROR = -1, MOVE_UNDONE = 0, MOVE_KEPT = 1, MOVE_DEFERRED = 2 };
 
 static void sort4_gid(i2m_gidx_t g[4], uint32_t v[4])
 {
@@ -52,12 +80,25 @@ static void sort4_gid(i2m_gidx_t g[4], uint32_t v[4])
 
 static double uniform01(uint64_t *s) { return (double)(i2m_xorshift64(s) >> 11) * 0x1.0p-53; }
 
-/* Smallest dihedral angle of tet t, in degrees. */
-static double tet_min_dihedral(const i2m_dt_t *dt, uint32_t t)
+/* The generator of one (round, tile) pair (TILE_NONE: the sequential pass). */
+static uint64_t rng_seed(const i2m_refine_t *r, int round, uint32_t tile)
+{
+  uint64_t s = (r->p.seed ^ 0x9E3779B97F4A7C15ull) + (uint64_t)round * 0xBF58476D1CE4E5B9ull + (uint64_t)tile * 0x94D049BB133111EBull;
+  s ^= s >> 31;
+  return s ? s : 1;
+}
+
+/* The largest cosine of tet t's dihedral angles (its smallest angle's). */
+static double tet_max_cosine(const i2m_dt_t *dt, uint32_t t)
 {
   const uint32_t *v = dt->tv + 4 * (size_t)t;
-  return i2m_tet_min_dihedral(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]));
+  double cs[6], m = -1.0;
+  i2m_tet_dihedral_cosines(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), cs);
+  for (int e = 0; e < 6; e++) m = cs[e] > m ? cs[e] : m;
+  return m;
 }
+
+static double degrees_of_cosine(double c) { return acos(c > 1.0 ? 1.0 : c) * (180.0 / I2M_PI); }
 
 static i2m_err_t grow_list(uint32_t **a, uint32_t *cap, uint32_t need)
 {
@@ -68,10 +109,31 @@ static i2m_err_t grow_list(uint32_t **a, uint32_t *cap, uint32_t need)
   return I2M_OK;
 }
 
+static i2m_err_t list_push(sliver_list_t *L, const sliver_t *s)
+{
+  if (L->n == L->cap) {
+    L->cap = L->cap ? 2 * L->cap : 1024;
+    I2M_CALL(i2m_realloc(L->cap, sizeof *L->a, &L->a));
+  }
+  L->a[L->n++] = *s;
+  return I2M_OK;
+}
+
+static int cmp_sliver(const void *x, const void *y)
+{
+  const sliver_t *a = x, *b = y;
+  if (a->angle != b->angle) return (a->angle > b->angle) - (a->angle < b->angle);
+  for (int i = 0; i < 4; i++)
+    if (a->gid[i] != b->gid[i]) return (a->gid[i] > b->gid[i]) - (a->gid[i] < b->gid[i]);
+  return 0;
+}
+
+/* ---- one move ---- */
+
 /* The tets incident to vertex v (breadth-first across the faces that hold v). */
 static i2m_err_t star_of(perturb_t *P, uint32_t v)
 {
-  const i2m_dt_t *dt = P->w.r->dt;
+  const i2m_dt_t *dt = P->w->r->dt;
   P->nstar = 0;
   I2M_CALL(grow_list(&P->star, &P->cap_star, 1));
   P->star[P->nstar++] = dt->vtet[v];
@@ -96,8 +158,8 @@ static i2m_err_t star_of(perturb_t *P, uint32_t v)
  * and appends them to the changed list. */
 static i2m_err_t label_created(perturb_t *P)
 {
-  i2m_refine_t *r = P->w.r;
-  const i2m_dt_ctx_t *ctx = &P->w.ctx;
+  i2m_refine_t *r = P->w->r;
+  const i2m_dt_ctx_t *ctx = &P->w->ctx;
   I2M_CALL(grow_list(&P->changed, &P->cap_changed, P->nchanged + ctx->nnew));
   for (uint32_t k = 0; k < ctx->nnew; k++) {
     const uint32_t t = ctx->newt[k];
@@ -112,8 +174,8 @@ static i2m_err_t label_created(perturb_t *P)
 /* Takes vertex v out of the mesh (and, a surface vertex, out of the surface grid). */
 static i2m_dt_status_t take_out(perturb_t *P, uint32_t v)
 {
-  i2m_refine_t *r = P->w.r;
-  i2m_dt_ctx_t *ctx = &P->w.ctx;
+  i2m_refine_t *r = P->w->r;
+  i2m_dt_ctx_t *ctx = &P->w->ctx;
   const bool surface = r->dt->vkind[v] == I2M_VK_SURFACE;
   if (surface) vgrid_remove(&r->surf, r->dt, v);
   const i2m_dt_status_t st = i2m_dt_remove(ctx, v);
@@ -125,55 +187,93 @@ static i2m_dt_status_t take_out(perturb_t *P, uint32_t v)
   return label_created(P) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
 }
 
-/* Puts a vertex (global id gid, kind, patch tag for a surface vertex) at p, locating p from
- * tet start; *vout is its slot. */
+/* Does the worker's zone (if any) hold every vertex of the face of tet t opposite i?  Only
+ * then is the tet across it sure to change for nobody else meanwhile. */
+static bool face_in_zone(const i2m_refine_worker_t *w, const i2m_dt_t *dt, uint32_t t, int i)
+{
+  if (!w->tile) return true;
+  const uint32_t *v = dt->tv + 4 * (size_t)t;
+  for (int j = 0; j < 4; j++)
+    if (j != i && tiles_zone_holds(w, i2m_dt_xyz(dt, v[j]))) return true;
+  return false;
+}
+
+/* A tet that holds p, by a visibility walk from tet t that never crosses into a tet no vertex
+ * of whose face lies in the zone (those may be changing); I2M_DT_NONE when it would. */
+static uint32_t locate_near(const i2m_refine_worker_t *w, uint32_t t, const double p[3])
+{
+  const i2m_dt_t *dt = w->r->dt;
+  for (int step = 0; step < WALK_STEPS; step++) {
+    const uint32_t *v = dt->tv + 4 * (size_t)t;
+    int beyond = -1;
+    for (int i = 0; i < 4 && beyond < 0; i++) {
+      const double *q[4] = {i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3])};
+      q[i] = p;
+      if (i2m_orient3d(q[0], q[1], q[2], q[3]) < 0) beyond = i;
+    }
+    if (beyond < 0) return t;
+    const uint32_t n = dt->tn[4 * (size_t)t + (uint32_t)beyond];
+    if (n == I2M_DT_NONE || !face_in_zone(w, dt, t, beyond)) return I2M_DT_NONE;
+    t = n >> 2;
+  }
+  return I2M_DT_NONE;
+}
+
+/* Puts a vertex (global id gid, kind, patch tag for a surface vertex) at p, which a tet near
+ * tet start holds; *vout is its slot.  ROLLBACK when p lies beyond the walk's reach. */
 static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, uint8_t kind, uint32_t tag, uint32_t start,
                               uint32_t *vout)
 {
-  i2m_refine_t *r = P->w.r;
-  i2m_dt_ctx_t *ctx = &P->w.ctx;
-  i2m_dt_status_t st = i2m_dt_insert_walk(ctx, p, gid, kind, start, vout);
+  i2m_refine_t *r = P->w->r;
+  i2m_dt_ctx_t *ctx = &P->w->ctx;
+  const uint32_t seed = locate_near(P->w, start, p);
+  if (seed == I2M_DT_NONE) return I2M_DT_ROLLBACK;
+  i2m_dt_status_t st = i2m_dt_insert(ctx, p, gid, kind, seed, I2M_DT_NONE, vout);
   i2m_dt_unlock_all(ctx);
   if (st != I2M_DT_OK) return st;
   if (kind == I2M_VK_SURFACE && vgrid_insert(&r->surf, r->dt, *vout, tag) != I2M_OK) return I2M_DT_FAILED;
   return label_created(P) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
 }
 
-/* Do the changed tets pass every rule, and is their smallest dihedral angle above floor? */
-static bool changed_ok(perturb_t *P, double floor)
+/* Do the changed tets pass every rule, with their smallest dihedral angle above the star's
+ * worst (their largest cosine below floor_cos)?  1 yes, 0 no, -1 the rules cannot tell
+ * inside the zone. */
+static int changed_ok(perturb_t *P, double floor_cos)
 {
-  const i2m_dt_t *dt = P->w.r->dt;
+  const i2m_dt_t *dt = P->w->r->dt;
   for (uint32_t k = 0; k < P->nchanged; k++) {
     const uint32_t t = P->changed[k];
     if (!i2m_dt_alive(dt, t)) continue; /* (a removal's tet the insertion took again) */
-    if (tet_min_dihedral(dt, t) <= floor) return false;
+    if (tet_max_cosine(dt, t) >= floor_cos) return 0;
   }
   for (uint32_t k = 0; k < P->nchanged; k++) {
     const uint32_t t = P->changed[k];
     if (!i2m_dt_alive(dt, t)) continue;
     action_t a;
-    if (classify_action(&P->w, t, &a, 0) != 0) return false;
+    const int c = classify_action(P->w, t, &a, 0);
+    if (c != 0) return c > 0 ? 0 : -1;
   }
-  return true;
+  return 1;
 }
 
-/* The live tets that a move made (kept or undone: undoing restores the tets, not their slots)
- * join the tets the next round looks at. */
+/* The live tets that a move made (kept or undone: undoing restores the tets, not their
+ * slots) join the tets the next round looks at. */
 static i2m_err_t note_touched(perturb_t *P)
 {
-  const i2m_dt_t *dt = P->w.r->dt;
+  const i2m_dt_t *dt = P->w->r->dt;
   I2M_CALL(grow_list(&P->touched, &P->cap_touched, P->ntouched + P->nchanged));
   for (uint32_t k = 0; k < P->nchanged; k++)
     if (i2m_dt_alive(dt, P->changed[k])) P->touched[P->ntouched++] = P->changed[k];
   return I2M_OK;
 }
 
-/* One attempt: vertex *v to p (the same kind, global id and patch).  Kept when changed_ok;
- * otherwise the vertex goes back to where it was (the same triangulation).  *v is the
- * vertex's slot afterwards.  Returns 1 when kept, 0 when not, -1 on an error. */
-static int try_move(perturb_t *P, uint32_t *v, const double p[3], double floor)
+/* One attempt: vertex *v to p (the same kind, global id and patch).  Kept when the changed
+ * tets pass; otherwise the vertex goes back to where it was (the same triangulation: its
+ * star was the zone's, so it fits again, in slots the removal gave back).  *v is the
+ * vertex's slot afterwards.  A MOVE_* result. */
+static int try_move(perturb_t *P, uint32_t *v, const double p[3], double floor_cos)
 {
-  i2m_refine_t *r = P->w.r;
+  i2m_refine_t *r = P->w->r;
   i2m_dt_t *dt = r->dt;
   const double *x = i2m_dt_xyz(dt, *v);
   const double x0[3] = {x[0], x[1], x[2]};
@@ -181,25 +281,32 @@ static int try_move(perturb_t *P, uint32_t *v, const double p[3], double floor)
   const uint8_t kind = dt->vkind[*v];
   const uint32_t tag = kind == I2M_VK_SURFACE ? r->surf.tag[*v] : 0;
   P->nchanged = 0;
-  P->st.tried++;
+  P->tried++;
   i2m_dt_status_t st = take_out(P, *v);
-  if (st != I2M_DT_OK) return st == I2M_DT_FAILED ? -1 : 0; /* nothing changed */
-  uint32_t start = P->w.ctx.newt[0], moved;
+  if (st == I2M_DT_FAILED) return MOVE_ERROR;
+  if (st != I2M_DT_OK) return st == I2M_DT_ROLLBACK || st == I2M_DT_FULL ? MOVE_DEFERRED : MOVE_UNDONE; /* nothing changed */
+  uint32_t start = P->w->ctx.newt[0], moved;
   st = put_in(P, p, gid, kind, tag, start, &moved);
-  if (st == I2M_DT_FAILED) return -1;
-  if (st == I2M_DT_OK && changed_ok(P, floor)) {
-    P->st.kept++;
-    *v = moved;
-    return note_touched(P) == I2M_OK ? 1 : -1;
+  if (st == I2M_DT_FAILED) return MOVE_ERROR;
+  int verdict = MOVE_UNDONE;
+  if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) verdict = MOVE_DEFERRED;
+  if (st == I2M_DT_OK) {
+    const int ok = changed_ok(P, floor_cos);
+    if (ok > 0) {
+      P->kept++;
+      *v = moved;
+      return note_touched(P) == I2M_OK ? MOVE_KEPT : MOVE_ERROR;
+    }
+    if (ok < 0) verdict = MOVE_DEFERRED;
   }
   /* back: take the moved vertex out again (when it went in), then the old point in */
   P->nchanged = 0;
   if (st == I2M_DT_OK) {
-    if (take_out(P, moved) != I2M_DT_OK) return -1;
-    start = P->w.ctx.newt[0];
+    if (take_out(P, moved) != I2M_DT_OK) return MOVE_ERROR;
+    start = P->w->ctx.newt[0];
   }
-  if (put_in(P, x0, gid, kind, tag, start, v) != I2M_DT_OK) return -1;
-  return note_touched(P) == I2M_OK ? 0 : -1; /* (the same tets, maybe in other slots) */
+  if (put_in(P, x0, gid, kind, tag, start, v) != I2M_DT_OK) return MOVE_ERROR;
+  return note_touched(P) == I2M_OK ? verdict : MOVE_ERROR;
 }
 
 /* A surface vertex stays on its interface patch: p becomes the closest interface point to p,
@@ -213,102 +320,35 @@ static bool onto_patch(const i2m_refine_t *r, uint32_t patch, double p[3])
   return true;
 }
 
-static int cmp_sliver(const void *x, const void *y)
-{
-  const sliver_t *a = x, *b = y;
-  if (a->angle != b->angle) return (a->angle > b->angle) - (a->angle < b->angle);
-  for (int i = 0; i < 4; i++)
-    if (a->gid[i] != b->gid[i]) return (a->gid[i] > b->gid[i]) - (a->gid[i] < b->gid[i]);
-  return 0;
-}
-
-typedef struct {
-  sliver_t *a;
-  size_t n, cap;
-} sliver_list_t;
-
-/* Tet t joins the list when it is an output tet below the bound. */
-static i2m_err_t consider(const i2m_dt_t *dt, uint32_t t, double bound, sliver_list_t *L)
-{
-  if (!tet_kept(dt, t)) return I2M_OK;
-  const double a = tet_min_dihedral(dt, t);
-  if (!(a < bound)) return I2M_OK;
-  if (L->n == L->cap) {
-    L->cap = L->cap ? 2 * L->cap : 1024;
-    I2M_CALL(i2m_realloc(L->cap, sizeof *L->a, &L->a));
-  }
-  sliver_t *s = &L->a[L->n++];
-  *s = (sliver_t){t, i2m_dt_meta(dt, t), a, {0}};
-  uint32_t v[4];
-  memcpy(v, dt->tv + 4 * (size_t)t, sizeof v);
-  for (int i = 0; i < 4; i++) s->gid[i] = i2m_dt_gid(dt, v[i]);
-  sort4_gid(s->gid, v);
-  return I2M_OK;
-}
-
-/* The output tets below the bound, and the smallest angle of all output tets. */
-static i2m_err_t collect_all(const i2m_refine_t *r, double bound, sliver_list_t *L, double *min_all)
-{
-  const i2m_dt_t *dt = r->dt;
-  const uint32_t nt = i2m_dt_ntets_slots(dt);
-  L->n = 0;
-  *min_all = 180.0;
-  for (uint32_t t = 0; t < nt; t++) {
-    if (!tet_kept(dt, t)) continue;
-    const double a = tet_min_dihedral(dt, t);
-    if (a < *min_all) *min_all = a;
-    if (a < bound) I2M_CALL(consider(dt, t, bound, L));
-  }
-  return I2M_OK;
-}
-
-static int cmp_u32(const void *x, const void *y)
-{
-  const uint32_t a = *(const uint32_t *)x, b = *(const uint32_t *)y;
-  return (a > b) - (a < b);
-}
-
-/* The same list after a round, without a pass over the mesh: a tet no move changed has its
- * angle still, so the slivers left are the list's untouched ones (same slot generation) and
- * the tets the moves made (each slot once; a made slot is newer than the list's entries). */
-static i2m_err_t collect_after_round(perturb_t *P, double bound, sliver_list_t *L)
-{
-  const i2m_dt_t *dt = P->w.r->dt;
-  size_t n = 0;
-  for (size_t k = 0; k < L->n; k++)
-    if (i2m_dt_meta(dt, L->a[k].t) == L->a[k].meta) L->a[n++] = L->a[k];
-  L->n = n;
-  if (P->ntouched > 1) qsort(P->touched, P->ntouched, sizeof *P->touched, cmp_u32);
-  for (uint32_t k = 0; k < P->ntouched; k++) {
-    const uint32_t t = P->touched[k];
-    if (k == 0 || P->touched[k - 1] != t) I2M_CALL(consider(dt, t, bound, L));
-  }
-  P->ntouched = 0;
-  return I2M_OK;
-}
-
 /* Tries to move each vertex of sliver s (free vertices anywhere near, surface vertices along
- * their patch) until one move is kept. */
+ * their patch), in the order of their global ids, until one move is kept.  A MOVE_* result
+ * (MOVE_DEFERRED: some move could not stay in the zone, none was kept). */
 static int treat_sliver(perturb_t *P, const sliver_t *s)
 {
-  i2m_dt_t *dt = P->w.r->dt;
-  if (i2m_dt_meta(dt, s->t) != s->meta) return 0; /* changed by an earlier move */
+  i2m_refine_worker_t *w = P->w;
+  i2m_dt_t *dt = w->r->dt;
+  if (i2m_dt_meta(dt, s->t) != s->meta) return MOVE_UNDONE; /* changed by an earlier move */
   uint32_t verts[4];
   i2m_gidx_t gid[4];
   memcpy(verts, dt->tv + 4 * (size_t)s->t, sizeof verts);
   for (int i = 0; i < 4; i++) gid[i] = i2m_dt_gid(dt, verts[i]);
-  sort4_gid(gid, verts); /* in the order of their global ids */
+  sort4_gid(gid, verts);
+  int result = MOVE_UNDONE;
   for (int i = 0; i < 4; i++) {
     uint32_t v = verts[i];
     const bool surface = dt->vkind[v] == I2M_VK_SURFACE;
     if (!surface && dt->vkind[v] != I2M_VK_FREE) continue;
-    if (star_of(P, v) != I2M_OK) return -1;
-    double floor = 180.0, lmin2 = INFINITY;
+    if (!tiles_zone_holds(w, i2m_dt_xyz(dt, v))) {
+      result = MOVE_DEFERRED;
+      continue;
+    }
+    if (star_of(P, v) != I2M_OK) return MOVE_ERROR;
+    double floor_cos = -1.0, lmin2 = INFINITY; /* the star's worst angle, as its cosine */
     const double *x = i2m_dt_xyz(dt, v);
     for (uint32_t k = 0; k < P->nstar; k++) {
       const uint32_t t = P->star[k], *tv = dt->tv + 4 * (size_t)t;
-      const double a = tet_min_dihedral(dt, t);
-      floor = a < floor ? a : floor;
+      const double c = tet_max_cosine(dt, t);
+      floor_cos = c > floor_cos ? c : floor_cos;
       for (int j = 0; j < 4; j++)
         if (tv[j] != v && tv[j] >= 8) { /* (box corners are far) */
           const double d2 = i2m_dist2(x, i2m_dt_xyz(dt, tv[j]));
@@ -327,50 +367,285 @@ static int treat_sliver(perturb_t *P, const sliver_t *s)
       const double len = lmin * (0.05 + 0.25 * uniform01(&P->rng)) / sqrt(n2);
       const double *xv = i2m_dt_xyz(dt, v);
       double p[3] = {xv[0] + len * d[0], xv[1] + len * d[1], xv[2] + len * d[2]};
-      if (surface && !onto_patch(P->w.r, P->w.r->surf.tag[v], p)) continue;
-      const int kept = try_move(P, &v, p, floor);
-      if (kept != 0) return kept;
+      if (surface && !onto_patch(w->r, w->r->surf.tag[v], p)) continue;
+      const int got = try_move(P, &v, p, floor_cos);
+      if (got == MOVE_KEPT || got == MOVE_ERROR) return got;
+      if (got == MOVE_DEFERRED) result = MOVE_DEFERRED;
     }
   }
-  return 0;
+  return result;
 }
 
-i2m_err_t i2m_refine_perturb_slivers(i2m_refine_t *r, double bound, i2m_sliver_stats_t *out)
+/* ---- the lists of slivers ---- */
+
+/* Output tet t, whose largest dihedral cosine is c, joins the list when its smallest angle is
+ * below the bound (its cosine above cos_bound). */
+static i2m_err_t consider(const i2m_dt_t *dt, uint32_t t, double c, double cos_bound, sliver_list_t *L)
 {
-  const double t0 = i2m_wtime();
-  perturb_t *P = NULL;
-  sliver_list_t L = {0};
-  I2M_CALL(i2m_calloc(1, sizeof *P, &P));
-  i2m_err_t err = worker_init(&P->w, r, (uint32_t)r->nworkers + 1, false); /* (an owner no worker has) */
-  i2m_progress_t progress;
-  i2m_progress_begin(&progress, "sliver perturbation", "vertex moves");
-  P->rng = 0x9E3779B97F4A7C15ull ^ r->p.seed;
-  double min_all = 180.0;
-  if (err == I2M_OK) err = collect_all(r, bound, &L, &min_all);
-  P->st.slivers_before = (int64_t)L.n;
-  P->st.min_before = min_all;
-  for (int round = 0; round < ROUNDS && err == I2M_OK && L.n > 0; round++) {
-    if (round > 0) err = collect_after_round(P, bound, &L);
-    if (L.n > 1) qsort(L.a, L.n, sizeof *L.a, cmp_sliver); /* worst first */
-    const int64_t kept0 = P->st.kept;
-    for (size_t k = 0; k < L.n && err == I2M_OK; k++) {
-      if (treat_sliver(P, &L.a[k]) < 0) err = I2M_ERROR(I2M_ERR_INTERNAL, "sliver perturbation: a vertex could not be moved back");
-      i2m_progress_update(&progress, P->st.tried);
+  if (!(c > cos_bound)) return I2M_OK;
+  sliver_t s = {t, i2m_dt_meta(dt, t), degrees_of_cosine(c), {0}};
+  uint32_t v[4];
+  memcpy(v, dt->tv + 4 * (size_t)t, sizeof v);
+  for (int i = 0; i < 4; i++) s.gid[i] = i2m_dt_gid(dt, v[i]);
+  sort4_gid(s.gid, v);
+  return list_push(L, &s);
+}
+
+#define COLLECT_CHUNKS 64
+
+/* The output tets below the bound, in order, and the smallest angle of all output tets: fixed
+ * chunks of the slots in parallel, joined in chunk order, then sorted (the same list on any
+ * number of threads). */
+static i2m_err_t collect_all(const i2m_refine_t *r, double bound, sliver_list_t *L, double *min_all)
+{
+  const i2m_dt_t *dt = r->dt;
+  const uint32_t nt = i2m_dt_ntets_slots(dt);
+  const double cos_bound = cos(bound * (I2M_PI / 180.0));
+  sliver_list_t part[COLLECT_CHUNKS];
+  double maxc[COLLECT_CHUNKS];
+  memset(part, 0, sizeof part);
+  int failed = 0;
+  I2M_OMP(omp parallel for schedule(dynamic, 1) reduction(| : failed))
+  for (int c = 0; c < COLLECT_CHUNKS; c++) {
+    const uint32_t lo = (uint32_t)((uint64_t)nt * (uint64_t)c / COLLECT_CHUNKS);
+    const uint32_t hi = (uint32_t)((uint64_t)nt * (uint64_t)(c + 1) / COLLECT_CHUNKS);
+    maxc[c] = -1.0;
+    for (uint32_t t = lo; t < hi && !failed; t++) {
+      if (!tet_kept(dt, t)) continue;
+      const double m = tet_max_cosine(dt, t);
+      maxc[c] = m > maxc[c] ? m : maxc[c];
+      failed |= consider(dt, t, m, cos_bound, &part[c]) != I2M_OK;
     }
-    if (P->st.kept == kept0) break;
   }
-  if (err == I2M_OK) err = collect_all(r, bound, &L, &min_all);
-  P->st.slivers_after = (int64_t)L.n;
-  P->st.min_after = min_all;
-  P->st.seconds = i2m_wtime() - t0;
-  i2m_progress_end(&progress, P->st.tried);
-  i2m_dt_ctx_flush(&P->w.ctx);
-  worker_free(&P->w);
-  i2m_free(&P->star);
-  i2m_free(&P->changed);
-  i2m_free(&P->touched);
-  if (out) *out = P->st;
-  i2m_free(&P);
-  i2m_free(&L.a);
+  L->n = 0;
+  double m = -1.0;
+  for (int c = 0; c < COLLECT_CHUNKS; c++) {
+    for (size_t i = 0; i < part[c].n && !failed; i++) failed |= list_push(L, &part[c].a[i]) != I2M_OK;
+    i2m_free(&part[c].a);
+    m = maxc[c] > m ? maxc[c] : m;
+  }
+  I2M_CHECK(!failed, I2M_ERR_MEMORY, "out of memory listing the slivers");
+  *min_all = m > -1.0 ? degrees_of_cosine(m) : 180.0;
+  if (L->n > 1) qsort(L->a, L->n, sizeof *L->a, cmp_sliver);
+  return I2M_OK;
+}
+
+static int cmp_u32(const void *x, const void *y)
+{
+  const uint32_t a = *(const uint32_t *)x, b = *(const uint32_t *)y;
+  return (a > b) - (a < b);
+}
+
+/* The list after a round, without a pass over the mesh: a tet no move changed has its angle
+ * still, so the slivers left are the list's untouched ones (same slot generation) and the
+ * tets the moves made (each slot once: a made slot is newer than the list's entries). */
+static i2m_err_t collect_after_round(i2m_refine_t *r, struct sliver_pass *S)
+{
+  const i2m_dt_t *dt = r->dt;
+  sliver_list_t *L = &S->list;
+  size_t n = 0;
+  for (size_t k = 0; k < L->n; k++)
+    if (i2m_dt_meta(dt, L->a[k].t) == L->a[k].meta) L->a[n++] = L->a[k];
+  L->n = n;
+  perturb_t *P0 = &S->per[0];
+  for (int k = 1; k < r->nworkers; k++) { /* every thread's touched tets into worker 0's */
+    perturb_t *P = &S->per[k];
+    I2M_CALL(grow_list(&P0->touched, &P0->cap_touched, P0->ntouched + P->ntouched));
+    if (P->ntouched) memcpy(P0->touched + P0->ntouched, P->touched, P->ntouched * sizeof *P->touched);
+    P0->ntouched += P->ntouched;
+    P->ntouched = 0;
+  }
+  if (P0->ntouched > 1) qsort(P0->touched, P0->ntouched, sizeof *P0->touched, cmp_u32);
+  const double cos_bound = cos(S->bound * (I2M_PI / 180.0));
+  for (uint32_t k = 0; k < P0->ntouched; k++) {
+    const uint32_t t = P0->touched[k];
+    if ((k == 0 || P0->touched[k - 1] != t) && tet_kept(dt, t)) I2M_CALL(consider(dt, t, tet_max_cosine(dt, t), cos_bound, L));
+  }
+  P0->ntouched = 0;
+  if (L->n > 1) qsort(L->a, L->n, sizeof *L->a, cmp_sliver);
+  return I2M_OK;
+}
+
+/* ---- the pass: begin, per round the colours' phases and a sequential pass, end ---- */
+
+static void pass_free(i2m_refine_t *r)
+{
+  struct sliver_pass *S = r->slivers;
+  if (!S) return;
+  for (int k = 0; S->per && k < r->nworkers; k++) {
+    perturb_t *P = &S->per[k];
+    i2m_free(&P->star);
+    i2m_free(&P->changed);
+    i2m_free(&P->touched);
+    i2m_free(&P->deferred.a);
+  }
+  i2m_free(&S->per);
+  i2m_free(&S->list.a);
+  i2m_free(&S->first);
+  i2m_free(&S->by_tile);
+  i2m_free(&S->active);
+  i2m_free(&r->slivers);
+}
+
+i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
+{
+  I2M_CHECK(!r->slivers, I2M_ERR_INTERNAL, "a sliver pass is already under way");
+  I2M_CALL(i2m_calloc(1, sizeof *r->slivers, &r->slivers));
+  struct sliver_pass *S = r->slivers;
+  S->bound = bound;
+  S->t0 = i2m_wtime();
+  i2m_err_t err = i2m_calloc((size_t)r->nworkers, sizeof *S->per, &S->per);
+  for (int k = 0; err == I2M_OK && k < r->nworkers; k++) S->per[k].w = &r->workers[k];
+  if (err == I2M_OK) err = collect_all(r, bound, &S->list, &S->st.min_before);
+  S->st.slivers_before = (int64_t)S->list.n;
+  if (err == I2M_OK) err = i2m_refine_tiling_begin(r); /* (the workers stop taking locks) */
+  if (err == I2M_OK) err = i2m_malloc(r->tiling->ntiles + 1, sizeof *S->first, &S->first);
+  if (err == I2M_OK) err = i2m_malloc(r->tiling->ntiles, sizeof *S->active, &S->active);
+  if (err != I2M_OK) {
+    i2m_refine_tiling_end(r);
+    pass_free(r);
+    return err;
+  }
+  i2m_progress_begin(&S->progress, "sliver perturbation", "vertex moves");
+  return I2M_OK;
+}
+
+bool i2m_refine_slivers_has_work(const i2m_refine_t *r)
+{
+  const struct sliver_pass *S = r->slivers;
+  int64_t kept = 0;
+  for (int k = 0; k < r->nworkers; k++) kept += S->per[k].kept;
+  return S->list.n > 0 && S->round < ROUNDS && (S->round == 0 || kept > S->kept_before_round);
+}
+
+/* The round's slivers grouped by tile (a stable counting sort: each tile's stay in order). */
+static i2m_err_t group_by_tile(i2m_refine_t *r, struct sliver_pass *S)
+{
+  const uint32_t nt = r->tiling->ntiles;
+  I2M_CALL(i2m_realloc(S->list.n ? S->list.n : 1, sizeof *S->by_tile, &S->by_tile));
+  memset(S->first, 0, (nt + 1) * sizeof *S->first);
+  for (size_t k = 0; k < S->list.n; k++) S->first[tiles_tile_of_tet(r, S->list.a[k].t) + 1]++;
+  for (uint32_t id = 0; id < nt; id++) S->first[id + 1] += S->first[id];
+  for (size_t k = 0; k < S->list.n; k++) { /* (first[id] runs ahead while filling; reset below) */
+    const uint32_t id = tiles_tile_of_tet(r, S->list.a[k].t);
+    S->by_tile[S->first[id]++] = S->list.a[k];
+  }
+  for (uint32_t id = nt; id > 0; id--) S->first[id] = S->first[id - 1];
+  S->first[0] = 0;
+  return I2M_OK;
+}
+
+i2m_err_t i2m_refine_slivers_phase(i2m_refine_t *r, int color, const uint32_t **tiles, uint32_t *ntiles)
+{
+  struct sliver_pass *S = r->slivers;
+  tiling_t *g = r->tiling;
+  if (color == 0) {
+    int64_t kept = 0;
+    for (int k = 0; k < r->nworkers; k++) kept += S->per[k].kept;
+    S->kept_before_round = kept;
+    I2M_CALL(group_by_tile(r, S));
+  }
+  S->nactive = 0;
+  for (uint32_t id = 0; id < g->ntiles; id++)
+    if (tiles_color(g, id) == color && S->first[id + 1] > S->first[id]) S->active[S->nactive++] = id;
+  for (uint32_t i = 0; i < S->nactive; i++) { /* a move needs a few tets more than it frees at most */
+    const uint32_t id = S->active[i], n = S->first[id + 1] - S->first[id];
+    I2M_CALL(i2m_dt_slots_grant(r->dt, &g->tile[id].slots, 256 + 64 * n, 16 + 2 * n));
+  }
+  I2M_CALL(vgrid_reserve(&r->surf, r->dt->cap_v)); /* nobody grows the grid while tiles run */
+  *tiles = S->active;
+  *ntiles = S->nactive;
+  return I2M_OK;
+}
+
+/* Treats slivers [0, n) of s with P; the deferred ones go to P's list. */
+static i2m_err_t treat_all(perturb_t *P, const sliver_t *s, size_t n)
+{
+  for (size_t k = 0; k < n; k++) {
+    const int got = treat_sliver(P, &s[k]);
+    I2M_CHECK(got != MOVE_ERROR, I2M_ERR_INTERNAL, "sliver perturbation: a vertex could not be moved back (%s)",
+              i2m_error_message());
+    if (got == MOVE_DEFERRED) I2M_CALL(list_push(&P->deferred, &s[k]));
+  }
+  return I2M_OK;
+}
+
+i2m_err_t i2m_refine_tile_slivers(i2m_refine_t *r, int k, uint32_t id)
+{
+  struct sliver_pass *S = r->slivers;
+  perturb_t *P = &S->per[k];
+  P->rng = rng_seed(r, S->round, id);
+  tiles_bind(P->w, id);
+  i2m_err_t err = treat_all(P, S->by_tile + S->first[id], S->first[id + 1] - S->first[id]);
+  tiles_unbind(P->w);
   return err;
+}
+
+i2m_err_t i2m_refine_slivers_merge(i2m_refine_t *r)
+{
+  struct sliver_pass *S = r->slivers;
+  for (uint32_t i = 0; i < S->nactive; i++) i2m_dt_slots_release(r->dt, &r->tiling->tile[S->active[i]].slots);
+  int64_t tried = 0;
+  for (int k = 0; k < r->nworkers; k++) tried += S->per[k].tried;
+  i2m_progress_update(&S->progress, tried);
+  return I2M_OK;
+}
+
+i2m_err_t i2m_refine_slivers_sequential(i2m_refine_t *r)
+{
+  struct sliver_pass *S = r->slivers;
+  perturb_t *P0 = &S->per[0];
+  for (int k = 1; k < r->nworkers; k++) { /* every thread's deferred slivers, in order */
+    const sliver_list_t *D = &S->per[k].deferred;
+    for (size_t i = 0; i < D->n; i++) I2M_CALL(list_push(&P0->deferred, &D->a[i]));
+    S->per[k].deferred.n = 0;
+  }
+  sliver_list_t todo = P0->deferred;
+  P0->deferred = (sliver_list_t){0};
+  if (todo.n > 1) qsort(todo.a, todo.n, sizeof *todo.a, cmp_sliver);
+  P0->rng = rng_seed(r, S->round, TILE_NONE);
+  i2m_err_t err = treat_all(P0, todo.a, todo.n); /* (no zone: nothing is deferred) */
+  i2m_free(&todo.a);
+  P0->deferred.n = 0;
+  if (err == I2M_OK) err = collect_after_round(r, S);
+  S->round++;
+  return err;
+}
+
+i2m_err_t i2m_refine_slivers_end(i2m_refine_t *r, i2m_sliver_stats_t *st)
+{
+  struct sliver_pass *S = r->slivers;
+  i2m_err_t err = I2M_OK;
+  if (S) {
+    for (int k = 0; k < r->nworkers; k++) {
+      S->st.tried += S->per[k].tried;
+      S->st.kept += S->per[k].kept;
+    }
+    err = collect_all(r, S->bound, &S->list, &S->st.min_after);
+    S->st.slivers_after = (int64_t)S->list.n;
+    S->st.seconds = i2m_wtime() - S->t0;
+    i2m_progress_end(&S->progress, S->st.tried);
+    if (st) *st = S->st;
+  }
+  i2m_refine_tiling_end(r);
+  pass_free(r);
+  return err;
+}
+
+i2m_err_t i2m_refine_perturb_slivers(i2m_refine_t *r, double bound, i2m_sliver_stats_t *st)
+{
+  I2M_CALL(i2m_refine_slivers_begin(r, bound));
+  i2m_err_t err = I2M_OK;
+  while (err == I2M_OK && i2m_refine_slivers_has_work(r)) {
+    for (int color = 0; color < 8 && err == I2M_OK; color++) {
+      const uint32_t *tiles;
+      uint32_t n;
+      err = i2m_refine_slivers_phase(r, color, &tiles, &n);
+      for (uint32_t i = 0; i < n && err == I2M_OK; i++) err = i2m_refine_tile_slivers(r, 0, tiles[i]);
+      if (err == I2M_OK) err = i2m_refine_slivers_merge(r);
+    }
+    if (err == I2M_OK) err = i2m_refine_slivers_sequential(r);
+  }
+  const i2m_err_t end = i2m_refine_slivers_end(r, st);
+  return err != I2M_OK ? err : end;
 }

@@ -37,7 +37,7 @@ static uint32_t tile_of_point(const tiling_t *g, const double x[3])
 }
 
 /* The tile of a tet: the one that holds its centroid. */
-static uint32_t tile_of_tet(const i2m_refine_t *r, uint32_t t)
+uint32_t tiles_tile_of_tet(const i2m_refine_t *r, uint32_t t)
 {
   const i2m_dt_t *dt = r->dt;
   const uint32_t *v = dt->tv + 4 * (size_t)t;
@@ -48,7 +48,7 @@ static uint32_t tile_of_tet(const i2m_refine_t *r, uint32_t t)
   return tile_of_point(r->tiling, c);
 }
 
-static int tile_color(const tiling_t *g, uint32_t id)
+int tiles_color(const tiling_t *g, uint32_t id)
 {
   uint32_t i = id % g->n[0], j = id / g->n[0] % g->n[1], k = id / g->n[0] / g->n[1];
   return (int)((i & 1) | (j & 1) << 1 | (k & 1) << 2);
@@ -122,7 +122,7 @@ static i2m_err_t place(i2m_refine_t *r, uint32_t id, handoff_t h)
 i2m_err_t tiles_route(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t meta, bool *taken)
 {
   i2m_refine_t *r = w->r;
-  const uint32_t to = tile_of_tet(r, t);
+  const uint32_t to = tiles_tile_of_tet(r, t);
   *taken = true;
   if (!w->tile) return place(r, to, (handoff_t){to, TILE_NONE, 0, level, t, meta, {0, 0}}); /* one thread */
   if (to == w->tile_id) {
@@ -160,7 +160,7 @@ static void swap_lists(i2m_refine_worker_t *w, tile_t *tl)
   tl->slots = s;
 }
 
-static void bind(i2m_refine_worker_t *w, uint32_t id)
+void tiles_bind(i2m_refine_worker_t *w, uint32_t id)
 {
   tile_t *tl = &w->r->tiling->tile[id];
   swap_lists(w, tl);
@@ -171,7 +171,7 @@ static void bind(i2m_refine_worker_t *w, uint32_t id)
   w->tile_full = false;
 }
 
-static void unbind(i2m_refine_worker_t *w)
+void tiles_unbind(i2m_refine_worker_t *w)
 {
   swap_lists(w, w->tile);
   w->ctx.zone = NULL;
@@ -183,13 +183,13 @@ i2m_err_t i2m_refine_tile_run(i2m_refine_t *r, int k, uint32_t id)
 {
   i2m_refine_worker_t *w = &r->workers[k];
   double t0 = i2m_wtime();
-  bind(w, id);
+  tiles_bind(w, id);
   int s;
   do {
     s = worker_step(w);
   } while (s == I2M_STEP_DONE);
   bool full = w->tile_full;
-  unbind(w);
+  tiles_unbind(w);
   w->st.seconds += i2m_wtime() - t0;
   tile_t *tl = &r->tiling->tile[id];
   if (full && tl->grant < (1u << 16)) tl->grant *= 2; /* the tile ran out of slots: more next time */
@@ -277,7 +277,7 @@ static i2m_err_t adopt_worker_elements(i2m_refine_t *r)
         bad_t b;
         badlist_get(&w->q[l], r->dt, i, &b);
         if (i2m_dt_meta(r->dt, b.t) != b.meta) continue;
-        I2M_CALL(place(r, tile_of_tet(r, b.t), (handoff_t){0, TILE_NONE, 0, l, b.t, b.meta, {0, 0}}));
+        I2M_CALL(place(r, tiles_tile_of_tet(r, b.t), (handoff_t){0, TILE_NONE, 0, l, b.t, b.meta, {0, 0}}));
       }
       w->q[l].n = 0;
       I2M_CALL(badlist_set_wide(&w->q[l], r->dt, false));
@@ -338,7 +338,7 @@ i2m_err_t i2m_refine_tiling_collect(i2m_refine_t *r)
   i2m_err_t err = I2M_OK;
   for (uint32_t t = 0; t < nt && err == I2M_OK; t++)
     if (g->level[t] >= 0)
-      err = place(r, tile_of_tet(r, t), (handoff_t){0, TILE_NONE, 0, g->level[t], t, i2m_dt_meta(r->dt, t), {0, 0}});
+      err = place(r, tiles_tile_of_tet(r, t), (handoff_t){0, TILE_NONE, 0, g->level[t], t, i2m_dt_meta(r->dt, t), {0, 0}});
   i2m_free(&g->level);
   return err;
 }
@@ -365,7 +365,7 @@ i2m_err_t i2m_refine_tiling_phase(i2m_refine_t *r, int color, const uint32_t **t
   tiling_t *g = r->tiling;
   uint32_t n = 0;
   for (uint32_t id = 0; id < g->ntiles; id++) /* the busiest first: key (less work, id) */
-    if (tile_color(g, id) == color && tile_has_work(&g->tile[id])) {
+    if (tiles_color(g, id) == color && tile_has_work(&g->tile[id])) {
       size_t wk = tile_work(&g->tile[id]);
       g->order[n++] = (uint64_t)(UINT32_MAX - (wk < UINT32_MAX ? wk : UINT32_MAX)) << 32 | id;
     }

@@ -301,12 +301,12 @@ static void report_fill(team_t *tm, i2m_threads_report_t *rep)
 /* ---- the deterministic mode: in each round, the tiles of one colour at a time (threads
  * take tiles in turn), a barrier after each colour, then worker 0's sequential pass ---- */
 
-typedef enum { JOB_CLASSIFY, JOB_TILES } job_kind_t;
+typedef enum { JOB_CLASSIFY, JOB_TILES, JOB_SLIVERS } job_kind_t;
 
 typedef struct {
   team_t *tm;
   job_kind_t kind;
-  const uint32_t *tiles; /* JOB_TILES: the phase's tiles */
+  const uint32_t *tiles; /* JOB_TILES, JOB_SLIVERS: the phase's tiles */
   uint32_t ntiles;
   _Atomic uint32_t next; /* the next tile to take */
 } job_t;
@@ -327,7 +327,7 @@ static void job_thread(void)
     for (;;) {
       uint32_t i = atomic_fetch_add_explicit(&jb->next, 1, memory_order_relaxed);
       if (i >= jb->ntiles || err != I2M_OK) break;
-      err = i2m_refine_tile_run(tm->r, k, jb->tiles[i]);
+      err = jb->kind == JOB_TILES ? i2m_refine_tile_run(tm->r, k, jb->tiles[i]) : i2m_refine_tile_slivers(tm->r, k, jb->tiles[i]);
     }
   }
   tm->fig[k].busy_seconds += i2m_wtime() - t0;
@@ -466,3 +466,37 @@ i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_t
 }
 
 void i2m_threads_report_free(i2m_threads_report_t *rep) { i2m_free(&rep->thread); }
+
+/* The sliver perturbation's rounds: the tiles of each colour on the team, then worker 0's
+ * sequential pass (as run_tiled). */
+static i2m_err_t slivers_rounds(team_t *tm)
+{
+  i2m_refine_t *r = tm->r;
+  i2m_err_t err = I2M_OK;
+  while (err == I2M_OK && i2m_refine_slivers_has_work(r)) {
+    for (int color = 0; color < 8 && err == I2M_OK; color++) {
+      job_t jb = {tm, JOB_SLIVERS, NULL, 0, 0};
+      err = i2m_refine_slivers_phase(r, color, &jb.tiles, &jb.ntiles);
+      if (err == I2M_OK && jb.ntiles > 0) err = run_job(tm, &jb);
+      if (err == I2M_OK) err = i2m_refine_slivers_merge(r);
+    }
+    if (err == I2M_OK) err = i2m_refine_slivers_sequential(r);
+  }
+  return err;
+}
+
+i2m_err_t i2m_threads_perturb_slivers(i2m_refine_t *r, const i2m_threads_opts_t *o, double bound,
+                                      i2m_sliver_stats_t *st)
+{
+  const int T = i2m_refine_nworkers(r); /* (worker k runs on thread k) */
+  if (T <= 1) return i2m_refine_perturb_slivers(r, bound, st);
+  I2M_CHECK(atomic_exchange(&team_busy, 1) == 0, I2M_ERR_UNSUPPORTED, "one parallel refinement at a time per process");
+  team_t tm;
+  i2m_err_t err = team_init(&tm, r, T, o->pin);
+  if (err == I2M_OK) err = i2m_refine_slivers_begin(r, bound);
+  if (err == I2M_OK) err = slivers_rounds(&tm);
+  const i2m_err_t end = i2m_refine_slivers_end(r, st);
+  team_free(&tm);
+  atomic_store(&team_busy, 0);
+  return err != I2M_OK ? err : end;
+}

@@ -44,16 +44,17 @@ typedef struct {
 } outcome_t;
 
 static outcome_t mesh_and_check_mode(const i2m_image_t *img, int T, const i2m_refine_params_t *p, double coarse,
-                                     bool deterministic);
+                                     bool deterministic, double sliver_angle);
 
 /* Refines img on T threads and checks validity and every guarantee. */
 static outcome_t mesh_and_check(const i2m_image_t *img, int T, const i2m_refine_params_t *p, double coarse)
 {
-  return mesh_and_check_mode(img, T, p, coarse, false);
+  return mesh_and_check_mode(img, T, p, coarse, false, 0);
 }
 
+/* (sliver_angle > 0: then the sliver perturbation on the same threads) */
 static outcome_t mesh_and_check_mode(const i2m_image_t *img, int T, const i2m_refine_params_t *p, double coarse,
-                                     bool deterministic)
+                                     bool deterministic, double sliver_angle)
 {
   outcome_t o;
   memset(&o, 0, sizeof o);
@@ -73,6 +74,14 @@ static outcome_t mesh_and_check_mode(const i2m_image_t *img, int T, const i2m_re
   o.sequential_ops = rep.sequential_ops;
   CU_ASSERT_EQUAL(rep.deterministic, deterministic);
   i2m_threads_report_free(&rep);
+  if (sliver_angle > 0) {
+    i2m_sliver_stats_t st;
+    err = i2m_threads_perturb_slivers(r, &to, sliver_angle, &st);
+    if (err) fprintf(stderr, "%s\n", i2m_error_message());
+    CU_ASSERT_FATAL(err == I2M_OK);
+    CU_ASSERT(st.slivers_after < st.slivers_before);
+    CU_ASSERT(st.min_after >= st.min_before);
+  }
   int64_t ntw = 0;
   o.checksum = i2m_dt_checksum(i2m_refine_dt(r), &ntw);
   err = i2m_dt_check(i2m_refine_dt(r), true);
@@ -150,16 +159,16 @@ static void test_growth_pauses_and_coarse_phase(void)
 
 /* The deterministic mode: 1, 2 and 4 threads build the very same triangulation (equal
  * order-independent checksums over the global vertex ids), valid and meeting every
- * guarantee, with and without a coarse phase. */
+ * guarantee, with and without a coarse phase, and with the sliver perturbation after it. */
 static void test_deterministic_mode(void)
 {
   i2m_image_t *img = make_image(22, 1.0);
   i2m_refine_params_t p;
   i2m_refine_params_default(&p);
   const int T[3] = {1, 2, 4};
-  for (int coarse = 0; coarse < 2; coarse++) {
+  for (int run = 0; run < 3; run++) { /* no coarse phase, a coarse phase, slivers perturbed */
     outcome_t o[3];
-    for (int i = 0; i < 3; i++) o[i] = mesh_and_check_mode(img, T[i], &p, coarse ? 4.0 : 1.0, true);
+    for (int i = 0; i < 3; i++) o[i] = mesh_and_check_mode(img, T[i], &p, run == 1 ? 4.0 : 1.0, true, run == 2 ? 10.0 : 0);
     for (int i = 1; i < 3; i++) {
       CU_ASSERT_EQUAL(o[i].checksum, o[0].checksum);
       CU_ASSERT_EQUAL(o[i].nt, o[0].nt);

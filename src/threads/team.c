@@ -348,22 +348,46 @@ static i2m_err_t run_job(team_t *tm, job_t *jb)
   return I2M_OK;
 }
 
-/* Rounds until no tile and no sequential pass has anything left. */
-static i2m_err_t run_tiled(team_t *tm, i2m_threads_report_t *rep)
+/* Work done on tiles in rounds (refinement, or the sliver perturbation): per round, the
+ * tiles of each colour on the team with a barrier after each colour, then worker 0's
+ * sequential pass. */
+typedef struct {
+  job_kind_t kind;
+  bool (*has_work)(const i2m_refine_t *r);
+  i2m_err_t (*phase)(i2m_refine_t *r, int color, const uint32_t **tiles, uint32_t *ntiles);
+  i2m_err_t (*merge)(i2m_refine_t *r);
+  i2m_err_t (*sequential)(i2m_refine_t *r);
+} tiled_work_t;
+
+static const tiled_work_t REFINE_TILES = {JOB_TILES, i2m_refine_tiling_has_work, i2m_refine_tiling_phase,
+                                          i2m_refine_tiling_merge, i2m_refine_tiling_sequential};
+static const tiled_work_t SLIVER_TILES = {JOB_SLIVERS, i2m_refine_slivers_has_work, i2m_refine_slivers_phase,
+                                          i2m_refine_slivers_merge, i2m_refine_slivers_sequential};
+
+/* Rounds until nothing is left; *phases counts the colours that had tiles. */
+static i2m_err_t tiled_rounds(team_t *tm, const tiled_work_t *wk, int64_t *phases)
 {
   i2m_refine_t *r = tm->r;
   i2m_err_t err = I2M_OK;
-  while (err == I2M_OK && i2m_refine_tiling_has_work(r)) {
+  while (err == I2M_OK && wk->has_work(r)) {
     for (int color = 0; color < 8 && err == I2M_OK; color++) {
-      job_t jb = {tm, JOB_TILES, NULL, 0, 0};
-      err = i2m_refine_tiling_phase(r, color, &jb.tiles, &jb.ntiles);
+      job_t jb = {tm, wk->kind, NULL, 0, 0};
+      err = wk->phase(r, color, &jb.tiles, &jb.ntiles);
       if (err != I2M_OK || jb.ntiles == 0) continue;
       err = run_job(tm, &jb);
-      if (err == I2M_OK) err = i2m_refine_tiling_merge(r);
-      rep->phases++;
+      if (err == I2M_OK) err = wk->merge(r);
+      (*phases)++;
     }
-    if (err == I2M_OK) err = i2m_refine_tiling_sequential(r);
+    if (err == I2M_OK) err = wk->sequential(r);
   }
+  return err;
+}
+
+/* Refinement's rounds on the tiles, then the tiling's figures. */
+static i2m_err_t run_tiled(team_t *tm, i2m_threads_report_t *rep)
+{
+  i2m_refine_t *r = tm->r;
+  i2m_err_t err = tiled_rounds(tm, &REFINE_TILES, &rep->phases);
   double side;
   int64_t rounds, seq;
   i2m_refine_tiling_figures(r, &side, &rounds, &seq);
@@ -467,24 +491,6 @@ i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_t
 
 void i2m_threads_report_free(i2m_threads_report_t *rep) { i2m_free(&rep->thread); }
 
-/* The sliver perturbation's rounds: the tiles of each colour on the team, then worker 0's
- * sequential pass (as run_tiled). */
-static i2m_err_t slivers_rounds(team_t *tm)
-{
-  i2m_refine_t *r = tm->r;
-  i2m_err_t err = I2M_OK;
-  while (err == I2M_OK && i2m_refine_slivers_has_work(r)) {
-    for (int color = 0; color < 8 && err == I2M_OK; color++) {
-      job_t jb = {tm, JOB_SLIVERS, NULL, 0, 0};
-      err = i2m_refine_slivers_phase(r, color, &jb.tiles, &jb.ntiles);
-      if (err == I2M_OK && jb.ntiles > 0) err = run_job(tm, &jb);
-      if (err == I2M_OK) err = i2m_refine_slivers_merge(r);
-    }
-    if (err == I2M_OK) err = i2m_refine_slivers_sequential(r);
-  }
-  return err;
-}
-
 i2m_err_t i2m_threads_perturb_slivers(i2m_refine_t *r, const i2m_threads_opts_t *o, double bound,
                                       i2m_sliver_stats_t *st)
 {
@@ -494,7 +500,8 @@ i2m_err_t i2m_threads_perturb_slivers(i2m_refine_t *r, const i2m_threads_opts_t 
   team_t tm;
   i2m_err_t err = team_init(&tm, r, T, o->pin);
   if (err == I2M_OK) err = i2m_refine_slivers_begin(r, bound);
-  if (err == I2M_OK) err = slivers_rounds(&tm);
+  int64_t phases = 0;
+  if (err == I2M_OK) err = tiled_rounds(&tm, &SLIVER_TILES, &phases);
   const i2m_err_t end = i2m_refine_slivers_end(r, st);
   team_free(&tm);
   atomic_store(&team_busy, 0);

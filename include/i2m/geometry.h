@@ -4,6 +4,8 @@
 #ifndef I2M_GEOMETRY_H
 #define I2M_GEOMETRY_H
 
+#include <math.h>
+
 #include "i2m/base.h"
 
 #ifdef __cplusplus
@@ -59,6 +61,16 @@ void i2m_tet_dihedral_angles(const double a[3], const double b[3], const double 
 
 /** The smallest dihedral angle of tet abcd in degrees. */
 double i2m_tet_min_dihedral(const double a[3], const double b[3], const double c[3], const double d[3]);
+
+/** The cosine of that smallest angle (the largest of the six): compare angles by it, one
+ *  acos only when the angle itself is wanted. */
+double i2m_tet_max_dihedral_cosine(const double a[3], const double b[3], const double c[3], const double d[3]);
+
+/** The angle in degrees whose cosine is c (clamped to [-1, 1]). */
+static inline double i2m_degrees_of_cosine(double c)
+{
+  return acos(c > 1.0 ? 1.0 : c < -1.0 ? -1.0 : c) * (180.0 / I2M_PI);
+}
 
 /** Cosines of the six dihedral angles of tet abcd (same edge order as the angles). */
 void i2m_tet_dihedral_cosines(const double a[3], const double b[3], const double c[3], const double d[3],

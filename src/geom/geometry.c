@@ -158,15 +158,20 @@ void i2m_tet_dihedral_angles(const double a[3], const double b[3], const double 
 {
   double cs[6];
   i2m_tet_dihedral_cosines(a, b, c, d, cs);
-  for (int e = 0; e < 6; e++) angles[e] = acos(cs[e]) * (180.0 / I2M_PI);
+  for (int e = 0; e < 6; e++) angles[e] = i2m_degrees_of_cosine(cs[e]);
+}
+
+double i2m_tet_max_dihedral_cosine(const double a[3], const double b[3], const double c[3], const double d[3])
+{
+  double cs[6], cmax = -1.0;
+  i2m_tet_dihedral_cosines(a, b, c, d, cs);
+  for (int e = 0; e < 6; e++) cmax = cs[e] > cmax ? cs[e] : cmax;
+  return cmax;
 }
 
 double i2m_tet_min_dihedral(const double a[3], const double b[3], const double c[3], const double d[3])
 {
-  double cs[6], cmax = -1.0; /* the smallest angle has the largest cosine: one acos */
-  i2m_tet_dihedral_cosines(a, b, c, d, cs);
-  for (int e = 0; e < 6; e++) cmax = cs[e] > cmax ? cs[e] : cmax;
-  return acos(cmax > 1.0 ? 1.0 : cmax) * (180.0 / I2M_PI);
+  return i2m_degrees_of_cosine(i2m_tet_max_dihedral_cosine(a, b, c, d));
 }
 
 int i2m_tri_circumcenter(const double a[3], const double b[3], const double c[3], double cc[3],
@@ -207,5 +212,5 @@ double i2m_tri_min_angle(const double a[3], const double b[3], const double c[3]
     double cs = dot3(e1, e2) / l;
     if (cs > cmax) cmax = cs;
   }
-  return acos(cmax > 1 ? 1 : cmax) * (180.0 / I2M_PI);
+  return i2m_degrees_of_cosine(cmax);
 }

@@ -68,8 +68,8 @@ static i2m_err_t tet_figures(const i2m_tetmesh_t *m, i2m_quality_t *q)
     I2M_OMP(omp critical(i2m_quality_hist))
     for (int k = 0; k < 180; k++) q->dihedral_hist[k] += hist[k];
   }
-  q->min_dihedral = m->nt ? acos(maxc) * (180.0 / I2M_PI) : 0;
-  q->max_dihedral = m->nt ? acos(minc) * (180.0 / I2M_PI) : 0;
+  q->min_dihedral = m->nt ? i2m_degrees_of_cosine(maxc) : 0;
+  q->max_dihedral = m->nt ? i2m_degrees_of_cosine(minc) : 0;
   q->max_radius_edge = maxre;
   q->n_ratio_above = above;
   i2m_free(&bins);

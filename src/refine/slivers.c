@@ -89,17 +89,12 @@ static uint64_t rng_seed(const i2m_refine_t *r, int round, uint32_t tile)
   return s ? s : 1;
 }
 
-/* The largest cosine of tet t's dihedral angles (its smallest angle's). */
+/* The cosine of tet t's smallest dihedral angle. */
 static double tet_max_cosine(const i2m_dt_t *dt, uint32_t t)
 {
   const uint32_t *v = dt->tv + 4 * (size_t)t;
-  double cs[6], m = -1.0;
-  i2m_tet_dihedral_cosines(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), cs);
-  for (int e = 0; e < 6; e++) m = cs[e] > m ? cs[e] : m;
-  return m;
+  return i2m_tet_max_dihedral_cosine(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]));
 }
-
-static double degrees_of_cosine(double c) { return acos(c > 1.0 ? 1.0 : c) * (180.0 / I2M_PI); }
 
 static i2m_err_t grow_list(uint32_t **a, uint32_t *cap, uint32_t need)
 {
@@ -384,7 +379,7 @@ static int treat_sliver(perturb_t *P, const sliver_t *s)
 static i2m_err_t consider(const i2m_dt_t *dt, uint32_t t, double c, double cos_bound, sliver_list_t *L)
 {
   if (!(c > cos_bound)) return I2M_OK;
-  sliver_t s = {t, i2m_dt_meta(dt, t), degrees_of_cosine(c), {0}};
+  sliver_t s = {t, i2m_dt_meta(dt, t), i2m_degrees_of_cosine(c), {0}};
   uint32_t v[4];
   memcpy(v, dt->tv + 4 * (size_t)t, sizeof v);
   for (int i = 0; i < 4; i++) s.gid[i] = i2m_dt_gid(dt, v[i]);
@@ -426,7 +421,7 @@ static i2m_err_t collect_all(const i2m_refine_t *r, double bound, sliver_list_t 
     m = maxc[c] > m ? maxc[c] : m;
   }
   I2M_CHECK(!failed, I2M_ERR_MEMORY, "out of memory listing the slivers");
-  *min_all = m > -1.0 ? degrees_of_cosine(m) : 180.0;
+  *min_all = m > -1.0 ? i2m_degrees_of_cosine(m) : 180.0;
   if (L->n > 1) qsort(L->a, L->n, sizeof *L->a, cmp_sliver);
   return I2M_OK;
 }
@@ -513,8 +508,8 @@ i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
   for (int k = 0; err == I2M_OK && k < r->nworkers; k++) S->per[k].w = &r->workers[k];
   if (err == I2M_OK) err = collect_all(r, bound, &S->list, &S->st.min_before);
   S->st.slivers_before = (int64_t)S->list.n;
-  double min_all;
-  if (err == I2M_OK && S->bound < bound) err = collect_all(r, S->bound, &S->list, &min_all);
+  while (S->list.n > 0 && !(S->list.a[S->list.n - 1].angle < S->bound)) /* the first stage's (sorted) */
+    S->list.n--;
   if (err == I2M_OK) err = next_stage_if_done(r, S);
   if (err == I2M_OK) err = i2m_refine_tiling_begin(r); /* (the workers stop taking locks) */
   if (err == I2M_OK) err = i2m_malloc(r->tiling->ntiles + 1, sizeof *S->first, &S->first);
@@ -622,9 +617,9 @@ i2m_err_t i2m_refine_slivers_sequential(i2m_refine_t *r)
   P0->deferred = (sliver_list_t){0};
   if (todo.n > 1) qsort(todo.a, todo.n, sizeof *todo.a, cmp_sliver);
   P0->rng = rng_seed(r, S->round, TILE_NONE);
-  i2m_err_t err = treat_all(P0, todo.a, todo.n); /* (no zone: nothing is deferred) */
+  i2m_err_t err = treat_all(P0, todo.a, todo.n);
   i2m_free(&todo.a);
-  P0->deferred.n = 0;
+  P0->deferred.n = 0; /* (no zone here: only a target beyond the walk's reach defers; dropped) */
   if (err == I2M_OK) err = collect_after_round(r, S);
   S->round++;
   if (err == I2M_OK) err = next_stage_if_done(r, S);

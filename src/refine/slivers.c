@@ -316,10 +316,28 @@ static bool onto_patch(const i2m_refine_t *r, uint32_t patch, double p[3])
   return true;
 }
 
+/* The tet whose vertices are the slots v[0..3] (in any order), from the star of v[0];
+ * I2M_DT_NONE when they no longer make one. */
+static uint32_t tet_of_vertices(perturb_t *P, const uint32_t v[4])
+{
+  const i2m_dt_t *dt = P->w->r->dt;
+  if (star_of(P, v[0]) != I2M_OK) return I2M_DT_NONE;
+  for (uint32_t k = 0; k < P->nstar; k++) {
+    const uint32_t *tv = dt->tv + 4 * (size_t)P->star[k];
+    int found = 0;
+    for (int i = 0; i < 4; i++) found += tv[i] == v[1] || tv[i] == v[2] || tv[i] == v[3];
+    if (found == 3) return P->star[k];
+  }
+  return I2M_DT_NONE;
+}
+
 /* Tries to move each vertex of sliver s (free vertices anywhere near, surface vertices along
  * their patch), in the order of their global ids, until one move is kept.  A MOVE_* result
- * (MOVE_DEFERRED: some move could not stay in the zone, none was kept). */
-static int treat_sliver(perturb_t *P, const sliver_t *s)
+ * (MOVE_DEFERRED: some move could not stay in the zone, none was kept).  A deferred sliver's
+ * tet is then the one its vertices make now: moves tried and undone rebuild it in other
+ * slots, and the sequential pass must find it (else it would skip the sliver as changed, and
+ * a sliver whose moves always leave the zone would never be treated). */
+static int treat_sliver(perturb_t *P, sliver_t *s)
 {
   i2m_refine_worker_t *w = P->w;
   i2m_dt_t *dt = w->r->dt;
@@ -367,6 +385,14 @@ static int treat_sliver(perturb_t *P, const sliver_t *s)
       const int got = try_move(P, &v, p, floor_cos);
       if (got == MOVE_KEPT || got == MOVE_ERROR) return got;
       if (got == MOVE_DEFERRED) result = MOVE_DEFERRED;
+    }
+    verts[i] = v; /* (its slot after the moves undone) */
+  }
+  if (result == MOVE_DEFERRED) {
+    const uint32_t t = tet_of_vertices(P, verts);
+    if (t != I2M_DT_NONE) {
+      s->t = t;
+      s->meta = i2m_dt_meta(dt, t);
     }
   }
   return result;
@@ -575,10 +601,11 @@ i2m_err_t i2m_refine_slivers_phase(i2m_refine_t *r, int color, const uint32_t **
 static i2m_err_t treat_all(perturb_t *P, const sliver_t *s, size_t n)
 {
   for (size_t k = 0; k < n; k++) {
-    const int got = treat_sliver(P, &s[k]);
+    sliver_t cur = s[k];
+    const int got = treat_sliver(P, &cur);
     I2M_CHECK(got != MOVE_ERROR, I2M_ERR_INTERNAL, "sliver perturbation: a vertex could not be moved back (%s)",
               i2m_error_message());
-    if (got == MOVE_DEFERRED) I2M_CALL(list_push(&P->deferred, &s[k]));
+    if (got == MOVE_DEFERRED) I2M_CALL(list_push(&P->deferred, &cur));
   }
   return I2M_OK;
 }

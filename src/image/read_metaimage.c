@@ -176,6 +176,8 @@ static i2m_err_t meta_position(meta_t *m, image_stream_t *s, const char *path, i
       return image_stream_seek(ds, ds->file_size - n[0] * n[1] * n[2] * (int64_t)image_scalar_size(t));
     }
     I2M_CALL(image_stream_skip(ds, skip > 0 ? skip : 0, &got));
+    I2M_CHECK(got == (skip > 0 ? skip : 0), I2M_ERR_INPUT, "%s: HeaderSize %lld goes past the end "
+              "of the file", ds->name, (long long)skip);
   }
   if (zlib) I2M_CALL(image_stream_begin_gzip(*data));
   return image_check_data_size(*data, n, t);

@@ -15,6 +15,13 @@ typedef struct {
   int big;                /* big-endian file */
 } nifti_t;
 
+/* The image file of a .hdr/.img pair. */
+typedef struct {
+  image_stream_t ds;
+  char img_path[4096];
+  char data_name[8400]; /* "<header> (image file <img>)", for messages */
+} nifti_pair_t;
+
 static uint32_t nifti_u32(const nifti_t *x, size_t off)
 {
   const unsigned char *p = x->h + off;
@@ -155,7 +162,7 @@ static i2m_err_t nifti_header(image_stream_t *s, const char *path, unsigned char
 
 /* Moves to the first voxel: in this file, or at vox_offset in the .img of a pair. */
 static i2m_err_t nifti_position(image_stream_t *s, const nifti_t *x, const char *path, int pair,
-                                image_stream_t *ds, char *img_path, size_t cap)
+                                nifti_pair_t *pf)
 {
   double off = nifti_f32(x, OFF_VOX_OFFSET);
   I2M_CHECK(isfinite(off) && off >= 0 && off == floor(off) && off < 9e15, I2M_ERR_INPUT,
@@ -169,21 +176,24 @@ static i2m_err_t nifti_position(image_stream_t *s, const nifti_t *x, const char 
     return I2M_OK;
   }
   size_t n = strlen(path);
-  I2M_CHECK(n >= 4 && n < cap && image_streq(path + n - 4, ".hdr"), I2M_ERR_UNSUPPORTED,
-            "%s: a NIfTI-1 pair header (magic \"ni1\") must be named .hdr, beside its .img", path);
-  memcpy(img_path, path, n + 1);
-  memcpy(img_path + n - 4, path[n - 1] == 'R' ? ".IMG" : ".img", 4);
-  i2m_err_t err = image_stream_open(img_path, ds);
+  I2M_CHECK(n >= 4 && n < sizeof pf->img_path && image_streq(path + n - 4, ".hdr"),
+            I2M_ERR_UNSUPPORTED, "%s: a NIfTI-1 pair header (magic \"ni1\") must be named .hdr, "
+            "beside its .img", path);
+  memcpy(pf->img_path, path, n + 1);
+  memcpy(pf->img_path + n - 4, path[n - 1] == 'R' ? ".IMG" : ".img", 4);
+  i2m_err_t err = image_stream_open(pf->img_path, &pf->ds);
   if (err != I2M_OK) {
     char msg[600];
     snprintf(msg, sizeof msg, "%s", i2m_error_message());
     return I2M_ERROR(err, "%s: cannot read its image file: %s", path, msg);
   }
-  return image_stream_seek(ds, (int64_t)off);
+  snprintf(pf->data_name, sizeof pf->data_name, "%s (image file %s)", path, pf->img_path);
+  pf->ds.name = pf->data_name; /* messages about the voxels name the header too */
+  return image_stream_seek(&pf->ds, (int64_t)off);
 }
 
-static i2m_err_t nifti_read(image_stream_t *s, const char *path, image_stream_t *ds,
-                            char *img_path, size_t cap, i2m_image_t **out)
+static i2m_err_t nifti_read(image_stream_t *s, const char *path, nifti_pair_t *pf,
+                            i2m_image_t **out)
 {
   unsigned char h[NIFTI_HDR];
   nifti_t x = {NULL, 0};
@@ -200,8 +210,8 @@ static i2m_err_t nifti_read(image_stream_t *s, const char *path, image_stream_t 
   vf.scale = isfinite(vf.slope) && isfinite(vf.inter) && vf.slope != 0 &&
              (vf.slope != 1 || vf.inter != 0);
   nifti_geometry(&x, axis, origin);
-  I2M_CALL(nifti_position(s, &x, path, pair, ds, img_path, cap));
-  image_stream_t *data = pair ? ds : s;
+  I2M_CALL(nifti_position(s, &x, path, pair, pf));
+  image_stream_t *data = pair ? &pf->ds : s;
   I2M_CALL(image_check_data_size(data, n, vf.type));
   I2M_CALL(image_alloc(path, n, out));
   I2M_CALL(image_set_geometry(*out, axis, origin));
@@ -211,12 +221,12 @@ static i2m_err_t nifti_read(image_stream_t *s, const char *path, image_stream_t 
 
 i2m_err_t image_read_nifti(image_stream_t *s, const char *path, i2m_image_t **out)
 {
-  image_stream_t ds;
-  char img_path[4096];
-  memset(&ds, 0, sizeof ds);
+  nifti_pair_t *pf = NULL;
   *out = NULL;
-  i2m_err_t err = nifti_read(s, path, &ds, img_path, sizeof img_path, out);
-  image_stream_close(&ds);
+  I2M_CALL(i2m_calloc(1, sizeof *pf, &pf));
+  i2m_err_t err = nifti_read(s, path, pf, out);
+  image_stream_close(&pf->ds);
+  i2m_free(&pf);
   if (err != I2M_OK) i2m_image_destroy(out);
   return err;
 }

@@ -57,6 +57,55 @@ head -c 150 "$T/cube.mesh" > "$T/truncated.mesh"
 printf '\001\002\377garbage\000\000' > "$T/junk.mesh"
 printf 'MeshVersionFormatted 2\nDimension 3\nBogus\n3\n' > "$T/keyword.mesh"
 { verts 8; printf 'Tetrahedra\n99999999999\n1 2 3\n'; } > "$T/hugecount.mesh"
+# cut between two sections: without End it would read as a smaller, valid mesh
+{ verts 8; printf 'Tetrahedra\n6\n%s\n' "$tets_ok"; } > "$T/noend.mesh"
+# no tetrahedra at all, with and without file triangles: invalid, not a crash
+{ verts 8; printf 'End\n'; } > "$T/notets.mesh"
+{ verts 8; printf '# i2m interface 1 = labels 0 1\nTriangles\n1\n1 2 3 1\nEnd\n'; } > "$T/trisonly.mesh"
+# the corner tet with label 0 (background): with --image, an extra label 0, not a crash
+sed 's/^1 2 3 4 7$/1 2 3 4 0/' "$T/corner.mesh" > "$T/corner0.mesh"
+# Gmsh 4.1 ASCII corner tet from its sections (F format, E entities, N nodes, L elements);
+# a section twice would be read over the first one's arrays; out of order, labels go wrong
+gmsh() {
+  for s in "$@"; do
+    case $s in
+      F) printf '$MeshFormat\n4.1 0 8\n$EndMeshFormat\n' ;;
+      E) printf '$Entities\n0 0 0 1\n1 0 0 0 1 1 1 0 0\n$EndEntities\n' ;;
+      N) printf '$Nodes\n1 4 1 4\n3 1 0 4\n1\n2\n3\n4\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n$EndNodes\n' ;;
+      L) printf '$Elements\n1 1 1 1\n3 1 4 1\n1 1 2 3 4\n$EndElements\n' ;;
+    esac
+  done
+}
+gmsh F E N L > "$T/gcorner.msh"
+gmsh F E N L L > "$T/dupelements.msh"
+gmsh F E E N L > "$T/dupentities.msh"
+gmsh F E N N L > "$T/dupnodes.msh"
+gmsh F N E L > "$T/lateentities.msh"
+# VTU corner tet (appended raw data, UInt64 headers); in short.vtu the material array lacks
+# 2 bytes and the closing tags follow at once: they must not be read as its values
+"$PY" - "$T" <<'EOF'
+import struct, sys
+def vtu(path, cut):
+    arrays = [('Float64', 'Points', struct.pack('<12d', 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1)),
+              ('Int64', 'connectivity', struct.pack('<4q', 0, 1, 2, 3)),
+              ('Int64', 'offsets', struct.pack('<q', 4)), ('UInt8', 'types', struct.pack('<B', 10)),
+              ('Int32', 'material', struct.pack('<i', 7))]
+    tags, app = [], b''
+    for ty, name, data in arrays:
+        comp = ' NumberOfComponents="3"' if name == 'Points' else ''
+        tags.append('<DataArray type="%s" Name="%s"%s format="appended" offset="%d"/>\n'
+                    % (ty, name, comp, len(app)))
+        app += struct.pack('<Q', len(data)) + data
+    xml = ('<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" '
+           'byte_order="LittleEndian" header_type="UInt64">\n<UnstructuredGrid>\n'
+           '<Piece NumberOfPoints="4" NumberOfCells="1">\n<Points>\n%s</Points>\n<Cells>\n%s%s%s'
+           '</Cells>\n<CellData>\n%s</CellData>\n</Piece>\n</UnstructuredGrid>\n'
+           '<AppendedData encoding="raw">\n_' % tuple(tags))
+    with open(path, 'wb') as f:
+        f.write(xml.encode() + app[:len(app) - cut] + b'\n</AppendedData>\n</VTKFile>\n')
+vtu(sys.argv[1] + '/vcorner.vtu', 0)
+vtu(sys.argv[1] + '/short.vtu', 2)
+EOF
 
 # ---- runs --------------------------------------------------------------------------------
 # expect CHECKER FILE CODE [JSON-PYTHON-ASSERTION] [extra args]
@@ -94,9 +143,14 @@ run_all() {
   expect "$ck" nan.mesh 1 "'nonfinite_vertex' in v['errors'] and v['first_nonfinite_vertex'] == 8 and j['quality'] is None"
   expect "$ck" flat.mesh 1 "'degenerate' in v['errors'] and v['degenerate'] == 1 and v['first_degenerate_tet'] == 6"
   expect "$ck" badtri.mesh 1 "'file_triangle_not_interface' in v['errors'] and 'interface_missing_from_file' in v['errors'] and v['file_triangles_not_interface'] == 1 and v['file_triangle_label_mismatch'] == 1"
-  for f in truncated.mesh empty.mesh junk.mesh keyword.mesh hugecount.mesh missing.mesh; do
+  for f in truncated.mesh empty.mesh junk.mesh keyword.mesh hugecount.mesh missing.mesh noend.mesh \
+           dupelements.msh dupentities.msh dupnodes.msh lateentities.msh short.vtu; do
     expect "$ck" $f 2 ""
   done
+  expect "$ck" notets.mesh 1 "'no_tetrahedra' in v['errors']"
+  expect "$ck" trisonly.mesh 1 "'no_tetrahedra' in v['errors'] and 'file_triangle_not_interface' in v['errors']"
+  expect "$ck" gcorner.msh 0 "v['valid'] and abs(v['total_volume'] - 1/6) < 1e-15"
+  expect "$ck" vcorner.vtu 0 "v['valid'] and abs(v['total_volume'] - 1/6) < 1e-15"
   # thresholds
   expect "$ck" corner.mesh 1 "j['violations'] and j['violations'][0].startswith('max-ratio')" --max-ratio 0.5
   expect "$ck" corner.mesh 0 "" --max-ratio 0.9
@@ -165,6 +219,7 @@ if [ -x "$BIN/i2m-mkimage" ] && [ -x "$TB/test_io_writers" ]; then
       expect "$ck" $f 0 "j['fidelity']['hausdorff']['max_mm'] < 1e-9 and j['fidelity']['missing_labels'] == 0 and all(abs(l['volume_error_pct']) < 1e-9 for l in j['fidelity']['labels'])" --image "$T/img.nrrd" --max-hausdorff 1e-9 --max-volume-error 1e-6 --volume-min-voxels 1 --require-labels 1
     done
     expect "$ck" other.mesh 1 "j['fidelity']['missing_labels'] >= 1 and j['fidelity']['hausdorff']['max_mm'] > 0.5 and any(s.startswith('require-labels') for s in j['violations'])" --image "$T/img.nrrd" --require-labels 1
+    expect "$ck" corner0.mesh 1 "j['fidelity']['extra_labels'] == 1 and j['fidelity']['labels'][0]['label'] == 0" --image "$T/img.nrrd"
   done
 else
   say "skip fidelity part (no i2m-mkimage or test_io_writers)"

@@ -34,6 +34,9 @@ mk --dims 20,20,20 --ndim 2 -o "$T/flat.mha"
 mk --dims 20,20,20 --ndim 5 -o "$T/time.nii.gz"
 mk --dims 20,20,20 --lie-dims 32767,32767,32767 -o "$T/absurd.nii.gz"
 mk --dims 5,5,5 --shape speck --labels 3 --type int16 --scale 0.5,0.25 -o "$T/scaled.nii"
+# a .hdr/.img pair whose .img is cut: the message names the header the user gave, too
+mk --dims 6,5,4 -o "$T/pair.hdr"
+head -c 60 "$T/pair.img" >"$T/pair.cut" && mv "$T/pair.cut" "$T/pair.img"
 printf 'NRRD0004\ntype: quaternion\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n12345678' >"$T/type.nrrd"
 printf 'ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_QUATERNION\nElementDataFile = LOCAL\n12345678' >"$T/type.mha"
 printf 'NRRD0004\ntype: uchar\ndimension: 3\nsizes: 100000 100000 100000\nencoding: raw\n\n12345678' >"$T/absurd.nrrd"
@@ -43,6 +46,8 @@ printf 'NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 -2 2\nencoding: raw\n\n123
 printf 'NRRD0004\ntype: float\ndimension: 3\nsizes: 2 1 1\nendian: little\nencoding: raw\n\n\000\000\200\077\000\000\300\177' >"$T/nan.nrrd"
 printf 'NRRD0004\ntype: uchar\ndimension: 3\nsizes: 1 1 1\nspace: LPS\nspace directions: (1,0,0) (0.3,1,0) (0,0,1)\nencoding: raw\n\n\001' >"$T/shear.nrrd"
 printf 'NRRD0004\ntype: uchar\ndimension: 3\nsizes: 1 1 1\nencoding: raw\ndata file: nothere.raw\n' >"$T/nodata.nhdr"
+printf 'ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nHeaderSize = 500\nElementDataFile = headersize.raw\n' >"$T/headersize.mhd"
+printf '12345678' >"$T/headersize.raw"
 : >"$T/empty.nii"
 mkdir -p "$T/dir.nrrd"
 dd if="$I2M_DATA/liver.inr.gz" of="$T/garbage.nrrd" bs=1000 skip=5 count=4 2>/dev/null
@@ -71,6 +76,8 @@ negative.nrrd|must be positive
 type.nrrd|unknown type \"quaternion\"
 type.mha|element type
 scaled.nii|non-integer
+pair.hdr|holds only 60 bytes
+headersize.mhd|HeaderSize 500 goes past the end
 nan.nrrd|NaN
 shear.nrrd|sheared
 nodata.nhdr|No such file

@@ -21,6 +21,7 @@
 /* ---- the mesh as read from the file ---- */
 typedef struct {
   char format[8];     /* "vtu", "medit", "gmsh" */
+  const char *path;   /* borrowed: the file name, for messages */
   int64_t nv;
   double *xyz;        /* owned: [nv][3] world coordinates */
   int64_t nt;
@@ -129,7 +130,8 @@ typedef struct {
                                 * along an image axis (a spike or sheet finer than delta cannot
                                 * be followed, however large its component) */
   int nlabels;
-  ck_label_t *labels;          /* owned: [nlabels] union of image and mesh labels (no 0) */
+  ck_label_t *labels;          /* owned: [nlabels] union of image labels (no 0) and mesh
+                                * labels (0 too, when tets carry it: an extra label) */
   int64_t missing_labels;      /* image labels absent from the mesh */
   int64_t extra_labels;        /* mesh labels absent from the image */
   int64_t image_components_total;

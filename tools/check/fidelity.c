@@ -568,9 +568,9 @@ static i2m_err_t label_table(const ck_mesh_t *m, const ck_topo_t *topo, const i2
     if (img->label_count[l] > 0) vals[nv++] = img->label_value[l];
   for (int64_t t = 0; t < m->nt; t++) vals[nv++] = m->tet_label[t];
   qsort(vals, (size_t)nv, sizeof *vals, cmp_i64);
-  int64_t nd = 0;
+  int64_t nd = 0; /* image values are never 0 (l >= 1); tets of label 0 get a slot too */
   for (int64_t i = 0; i < nv; i++)
-    if (vals[i] != 0 && (nd == 0 || vals[i] != vals[nd - 1])) vals[nd++] = vals[i];
+    if (nd == 0 || vals[i] != vals[nd - 1]) vals[nd++] = vals[i];
   i2m_err_t err = i2m_calloc((size_t)nd, sizeof *f->labels, &f->labels);
   if (err != I2M_OK) goto out;
   f->nlabels = (int)nd;
@@ -718,8 +718,9 @@ i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image
     i2m_image_world_to_grid(img, m->xyz + 3 * v, g + 3 * v);
     for (int a = 0; a < 3; a++)
       I2M_CHECK_GOTO(fabs(g[3 * v + a]) < ext, err, out, I2M_ERR_INPUT,
-                     "vertex %lld at (%g, %g, %g) is absurdly far from the image: no fidelity "
-                     "figures", (long long)v, m->xyz[3 * v], m->xyz[3 * v + 1], m->xyz[3 * v + 2]);
+                     "%s: vertex %lld at (%g, %g, %g) is absurdly far from the image %s: no "
+                     "fidelity figures", m->path, (long long)v, m->xyz[3 * v], m->xyz[3 * v + 1],
+                     m->xyz[3 * v + 2], img->path);
   }
   I2M_CALL_GOTO(err, out, image_faces(img, &faces, &nf));
   fc.f = faces;

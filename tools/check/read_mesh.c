@@ -2,7 +2,8 @@
  *   .vtu   VTK XML UnstructuredGrid: appended raw data with UInt32 or UInt64 headers,
  *          inline ascii or base64 DataArrays; no compression.  Tetrahedra (type 10) and
  *          cell data "material" (else the first cell array); other cells are skipped.
- *   .mesh  Medit ASCII: Vertices, Tetrahedra, Triangles; the comments
+ *   .mesh  Medit ASCII: Vertices, Tetrahedra, Triangles, then End (required: a file cut
+ *          between sections would otherwise read as a smaller mesh); the comments
  *          "# i2m interface N = labels A B" give each triangle ref its label pair.
  *   .msh   Gmsh 4.1 ASCII or binary: $PhysicalNames ("interface_A_B" names give the pairs),
  *          $Entities (physical tag of each entity), $Nodes, $Elements (tets and triangles).
@@ -135,6 +136,14 @@ static const char *find_str(const char *p, const char *end, const char *s)
   size_t n = strlen(s);
   for (; p + n <= end; p++)
     if (*p == *s && memcmp(p, s, n) == 0) return p;
+  return NULL;
+}
+
+static const char *find_last_str(const char *p, const char *end, const char *s)
+{
+  size_t n = strlen(s), len = (size_t)(end - p);
+  for (size_t i = len >= n ? len - n + 1 : 0; i-- > 0;)
+    if (p[i] == *s && memcmp(p + i, s, n) == 0) return p + i;
   return NULL;
 }
 
@@ -295,6 +304,8 @@ static i2m_err_t read_medit(rd_t *r, ck_mesh_t *m)
                  r->path);
   I2M_CHECK_GOTO(dim == 3, err, out, I2M_ERR_INPUT, "%s: not a Medit mesh (no Dimension 3)",
                  r->path);
+  /* End is the last thing written: without it the file was cut, maybe between sections */
+  I2M_CHECK_GOTO(done, err, out, I2M_ERR_INPUT, "%s: truncated file (no End keyword)", r->path);
   I2M_CALL_GOTO(err, out, i2m_malloc((size_t)m->ntri * 2, sizeof(int64_t), &m->tri_label));
   m->tri_labels_known = 1;
   int64_t maxref = 0;
@@ -337,6 +348,7 @@ typedef struct {
 typedef struct {
   const char *buf, *end, *path;
   const char *app;  /* first byte after the '_' of the appended data, or NULL */
+  const char *app_end; /* the closing </AppendedData> tag: the appended arrays end before it */
   int hsize;        /* 4 or 8 */
   int swap;
 } vtu_t;
@@ -460,11 +472,11 @@ static i2m_err_t vtu_array(const vtu_t *x, const vtu_da_t *da, int64_t count, do
   if (strcmp(da->format, "appended") == 0) {
     I2M_CHECK(x->app, I2M_ERR_INPUT, "%s: DataArray %s is appended but there is no AppendedData",
               x->path, da->name);
-    I2M_CHECK(da->offset >= 0 && da->offset <= x->end - x->app, I2M_ERR_INPUT,
-              "%s: DataArray %s: offset %lld beyond the end of the file", x->path, da->name,
-              (long long)da->offset);
+    I2M_CHECK(da->offset >= 0 && da->offset <= x->app_end - x->app, I2M_ERR_INPUT,
+              "%s: DataArray %s: offset %lld beyond the end of the appended data", x->path,
+              da->name, (long long)da->offset);
     data = (const unsigned char *)x->app + da->offset;
-    avail = (size_t)((const unsigned char *)x->end - data);
+    avail = (size_t)((const unsigned char *)x->app_end - data);
   } else if (strcmp(da->format, "binary") == 0) {
     const char *stop = find_str(da->tag_end, x->end, "</DataArray>");
     I2M_CHECK(stop, I2M_ERR_INPUT, "%s: DataArray %s is not closed", x->path, da->name);
@@ -487,7 +499,7 @@ static i2m_err_t vtu_array(const vtu_t *x, const vtu_da_t *da, int64_t count, do
                  da->name, (unsigned long long)nbytes, (long long)count, da->type,
                  (unsigned long long)count * (unsigned long long)ts);
   I2M_CHECK_GOTO(avail - (size_t)x->hsize >= nbytes, err, out, I2M_ERR_INPUT,
-                 "%s: DataArray %s: truncated (%llu bytes announced, %zu left in the file)",
+                 "%s: DataArray %s: truncated (%llu bytes announced, only %zu there)",
                  x->path, da->name, (unsigned long long)nbytes, avail - (size_t)x->hsize);
   data += x->hsize;
   for (int64_t i = 0; i < count; i++) {
@@ -572,6 +584,9 @@ static i2m_err_t vtu_header(vtu_t *x, const char **xml_end, int64_t *np, int64_t
     const char *u = memchr(ae, '_', (size_t)(x->end - ae));
     I2M_CHECK(u, I2M_ERR_INPUT, "%s: AppendedData without '_'", x->path);
     x->app = u + 1;
+    /* the last one: the raw bytes before it may hold the same text by chance */
+    x->app_end = find_last_str(x->app, x->end, "</AppendedData>");
+    I2M_CHECK(x->app_end, I2M_ERR_INPUT, "%s: truncated file (no </AppendedData>)", x->path);
   }
   /* the closing tag is the last thing written: without it the file was cut */
   const char *tail = x->end - (x->end - x->buf > 64 ? 64 : x->end - x->buf);
@@ -597,7 +612,7 @@ static i2m_err_t vtu_header(vtu_t *x, const char **xml_end, int64_t *np, int64_t
 
 static i2m_err_t read_vtu(const char *buf, size_t len, const char *path, ck_mesh_t *m)
 {
-  vtu_t x = {buf, buf + len, path, NULL, 4, 0};
+  vtu_t x = {buf, buf + len, path, NULL, NULL, 4, 0};
   vtu_da_t das[64];
   int nda = 0;
   const char *xml_end = NULL;
@@ -904,6 +919,35 @@ static i2m_err_t gm_format(gm_t *g)
   return I2M_OK;
 }
 
+/* The sections read, in the order Gmsh writes them; others are skipped. */
+static const char *const GM_SECTIONS[] = {"$MeshFormat", "$PhysicalNames", "$Entities", "$Nodes",
+                                          "$Elements"};
+enum { GM_NSECTIONS = sizeof GM_SECTIONS / sizeof GM_SECTIONS[0] };
+
+static int gm_section_index(const char *sec)
+{
+  for (int i = 0; i < GM_NSECTIONS; i++)
+    if (strcmp(sec, GM_SECTIONS[i]) == 0) return i;
+  return -1;
+}
+
+/* Reads section @p which of GM_SECTIONS (-1: skips an unknown one up to @p endw). */
+static i2m_err_t gm_section(gm_t *g, int which, const char *sec, const char *endw, ck_mesh_t *m)
+{
+  switch (which) {
+  case 0: return gm_format(g);
+  case 1: return gm_physical_names(g);
+  case 2: return gm_entities(g);
+  case 3: return gm_nodes(g, m);
+  case 4: return gm_elements(g, m);
+  default: break;
+  }
+  const char *e = find_str(g->r.p, g->r.end, endw);
+  I2M_CHECK(e, I2M_ERR_INPUT, "%s: %s is not closed", g->r.path, sec);
+  g->r.p = e;
+  return I2M_OK;
+}
+
 static i2m_err_t read_gmsh(rd_t *r0, ck_mesh_t *m)
 {
   gm_t g;
@@ -911,7 +955,7 @@ static i2m_err_t read_gmsh(rd_t *r0, ck_mesh_t *m)
   g.r = *r0;
   i2m_err_t err = I2M_OK;
   char sec[64], endw[80];
-  int have_format = 0, have_elements = 0;
+  int last = -1; /* index of the last section of GM_SECTIONS read */
   for (;;) {
     rd_ws(&g.r);
     if (g.r.p >= g.r.end) break;
@@ -919,35 +963,23 @@ static i2m_err_t read_gmsh(rd_t *r0, ck_mesh_t *m)
                    "%s: expected a $Section at byte %lld", g.r.path, (long long)(g.r.p - r0->p));
     rd_word(&g.r, sec, sizeof sec);
     rd_line_end(&g.r); /* binary data start right after the header line */
-    if (strcmp(sec, "$MeshFormat") == 0) {
-      I2M_CALL_GOTO(err, out, gm_format(&g));
-      have_format = 1;
-    } else {
-      I2M_CHECK_GOTO(have_format, err, out, I2M_ERR_INPUT, "%s: not a Gmsh file (no $MeshFormat)",
-                     g.r.path);
-      if (strcmp(sec, "$PhysicalNames") == 0) {
-        I2M_CALL_GOTO(err, out, gm_physical_names(&g));
-      } else if (strcmp(sec, "$Entities") == 0) {
-        I2M_CALL_GOTO(err, out, gm_entities(&g));
-      } else if (strcmp(sec, "$Nodes") == 0) {
-        I2M_CALL_GOTO(err, out, gm_nodes(&g, m));
-      } else if (strcmp(sec, "$Elements") == 0) {
-        I2M_CALL_GOTO(err, out, gm_elements(&g, m));
-        have_elements = 1;
-      }
-    }
+    int which = gm_section_index(sec);
+    I2M_CHECK_GOTO(which == 0 || last >= 0, err, out, I2M_ERR_INPUT,
+                   "%s: not a Gmsh file (no $MeshFormat)", g.r.path);
+    /* each once (a second one would be read over the arrays of the first), in order */
+    I2M_CHECK_GOTO(which < 0 || which != last, err, out, I2M_ERR_INPUT,
+                   "%s: %s appears twice", g.r.path, sec);
+    I2M_CHECK_GOTO(which < 0 || which > last, err, out, I2M_ERR_INPUT,
+                   "%s: %s after %s (the sections must come in the order $MeshFormat "
+                   "$PhysicalNames $Entities $Nodes $Elements)", g.r.path, sec, GM_SECTIONS[last]);
+    if (which >= 0) last = which;
     snprintf(endw, sizeof endw, "$End%s", sec + 1);
-    if (strcmp(sec, "$MeshFormat") && strcmp(sec, "$PhysicalNames") && strcmp(sec, "$Entities") &&
-        strcmp(sec, "$Nodes") && strcmp(sec, "$Elements")) {
-      const char *e = find_str(g.r.p, g.r.end, endw); /* unknown section: skip it */
-      I2M_CHECK_GOTO(e, err, out, I2M_ERR_INPUT, "%s: %s is not closed", g.r.path, sec);
-      g.r.p = e;
-    }
+    I2M_CALL_GOTO(err, out, gm_section(&g, which, sec, endw, m));
     rd_word(&g.r, sec, sizeof sec);
     I2M_CHECK_GOTO(strcmp(sec, endw) == 0, err, out, I2M_ERR_INPUT,
                    "%s: expected %s, found '%.20s' (truncated or corrupt file)", g.r.path, endw, sec);
   }
-  I2M_CHECK_GOTO(have_format && have_elements, err, out, I2M_ERR_INPUT,
+  I2M_CHECK_GOTO(last == GM_NSECTIONS - 1, err, out, I2M_ERR_INPUT,
                  "%s: not a complete Gmsh mesh (no $MeshFormat or $Elements)", g.r.path);
 out:
   i2m_free(&g.phys);
@@ -972,6 +1004,7 @@ i2m_err_t ck_mesh_read(const char *path, ck_mesh_t *m)
   int fmt = ends_with(path, ".vtu") ? 1 : ends_with(path, ".mesh") ? 2 : ends_with(path, ".msh") ? 3 : 0;
   I2M_CHECK(fmt, I2M_ERR_ARG, "%s: unknown mesh format (expected .vtu, .mesh or .msh)", path);
   I2M_CALL(read_file(path, &buf, &len));
+  m->path = path;
   rd_t r = {buf, buf + len, path, 0};
   i2m_err_t err;
   if (fmt == 1) {

@@ -44,6 +44,13 @@ static int face_of(const ck_mesh_t *m, int64_t id, int64_t s[3])
   return sort3(tv[F[0]], tv[F[1]], tv[F[2]], s);
 }
 
+/* qsort() of n items, none when n == 0: an empty array may be NULL (i2m_malloc of 0 bytes),
+ * which qsort() and memcpy() must not be given. */
+static void sort_n(void *a, int64_t n, size_t size, int (*cmp)(const void *, const void *))
+{
+  if (n > 0) qsort(a, (size_t)n, size, cmp);
+}
+
 static void add_error(ck_validity_t *v, const char *name)
 {
   size_t n = strlen(v->errors);
@@ -142,7 +149,7 @@ static i2m_err_t boundary_edges(const ck_mesh_t *m, const ck_topo_t *topo, ck_va
     e[ne++] = ((uint64_t)s[0] << 32) | (uint64_t)s[2];
     e[ne++] = ((uint64_t)s[1] << 32) | (uint64_t)s[2];
   }
-  qsort(e, (size_t)ne, sizeof *e, cmp_u64);
+  sort_n(e, ne, sizeof *e, cmp_u64);
   for (int64_t i = 0; i < ne;) {
     int64_t j = i + 1;
     while (j < ne && e[j] == e[i]) j++;
@@ -262,8 +269,8 @@ static i2m_err_t compare_file(const ck_mesh_t *m, const ck_topo_t *topo, ck_vali
     t[i].a = m->tri_label[2 * i];
     t[i].b = m->tri_label[2 * i + 1];
   }
-  qsort(d, (size_t)f->n, sizeof *d, cmp_tkey);
-  qsort(t, (size_t)m->ntri, sizeof *t, cmp_tkey);
+  sort_n(d, f->n, sizeof *d, cmp_tkey);
+  sort_n(t, m->ntri, sizeof *t, cmp_tkey);
   int64_t i = 0, j = 0;
   while (i < f->n || j < m->ntri) {
     if (j > 0 && j < m->ntri && cmp_tkey(&t[j], &t[j - 1]) == 0) {
@@ -303,8 +310,8 @@ static i2m_err_t count_pairs(const ck_iface_t *f, int64_t *npairs)
 {
   int64_t *p = NULL, n = 0;
   I2M_CALL(i2m_malloc((size_t)f->n * 2, sizeof *p, &p));
-  memcpy(p, f->lab, (size_t)f->n * 2 * sizeof *p);
-  qsort(p, (size_t)f->n, 2 * sizeof *p, cmp_pair);
+  if (f->n > 0) memcpy(p, f->lab, (size_t)f->n * 2 * sizeof *p);
+  sort_n(p, f->n, 2 * sizeof *p, cmp_pair);
   for (int64_t i = 0; i < f->n; i++) n += i == 0 || cmp_pair(p + 2 * i, p + 2 * i - 2) != 0;
   i2m_free(&p);
   *npairs = n;
@@ -337,8 +344,8 @@ i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo)
   memset(v, 0, sizeof *v);
   memset(topo, 0, sizeof *topo);
   v->first_bad_index = -1;
-  I2M_CHECK(m->nv < INT32_MAX, I2M_ERR_UNSUPPORTED, "%lld vertices: more than 32-bit ids",
-            (long long)m->nv);
+  I2M_CHECK(m->nv < INT32_MAX, I2M_ERR_UNSUPPORTED, "%s: %lld vertices: more than 32-bit ids",
+            m->path, (long long)m->nv);
   for (int64_t t = 0; t < m->nt; t++)
     for (int j = 0; j < 4; j++)
       if (m->tet[4 * t + j] < 0 || m->tet[4 * t + j] >= m->nv) {

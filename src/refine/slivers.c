@@ -316,16 +316,17 @@ static bool onto_patch(const i2m_refine_t *r, uint32_t patch, double p[3])
   return true;
 }
 
-/* The tet whose vertices are the slots v[0..3] (in any order), from the star of v[0];
- * I2M_DT_NONE when they no longer make one. */
-static uint32_t tet_of_vertices(perturb_t *P, const uint32_t v[4])
+/* The tet whose vertices are the slots v[0..3] (in any order), from the star of v[a] (a
+ * vertex of the zone: nobody else changes its tets); I2M_DT_NONE when they make none. */
+static uint32_t tet_of_vertices(perturb_t *P, const uint32_t v[4], int a)
 {
   const i2m_dt_t *dt = P->w->r->dt;
-  if (star_of(P, v[0]) != I2M_OK) return I2M_DT_NONE;
+  if (star_of(P, v[a]) != I2M_OK) return I2M_DT_NONE;
   for (uint32_t k = 0; k < P->nstar; k++) {
     const uint32_t *tv = dt->tv + 4 * (size_t)P->star[k];
     int found = 0;
-    for (int i = 0; i < 4; i++) found += tv[i] == v[1] || tv[i] == v[2] || tv[i] == v[3];
+    for (int i = 0; i < 4; i++)
+      for (int j = 0; j < 4; j++) found += j != a && tv[i] == v[j];
     if (found == 3) return P->star[k];
   }
   return I2M_DT_NONE;
@@ -347,7 +348,7 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
   memcpy(verts, dt->tv + 4 * (size_t)s->t, sizeof verts);
   for (int i = 0; i < 4; i++) gid[i] = i2m_dt_gid(dt, verts[i]);
   sort4_gid(gid, verts);
-  int result = MOVE_UNDONE;
+  int result = MOVE_UNDONE, moved = -1; /* moved: a vertex whose moves were tried */
   for (int i = 0; i < 4; i++) {
     uint32_t v = verts[i];
     const bool surface = dt->vkind[v] == I2M_VK_SURFACE;
@@ -383,13 +384,14 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
       double p[3] = {xv[0] + len * d[0], xv[1] + len * d[1], xv[2] + len * d[2]};
       if (surface && !onto_patch(w->r, w->r->surf.tag[v], p)) continue;
       const int got = try_move(P, &v, p, floor_cos);
+      moved = i;
       if (got == MOVE_KEPT || got == MOVE_ERROR) return got;
       if (got == MOVE_DEFERRED) result = MOVE_DEFERRED;
     }
     verts[i] = v; /* (its slot after the moves undone) */
   }
-  if (result == MOVE_DEFERRED) {
-    const uint32_t t = tet_of_vertices(P, verts);
+  if (result == MOVE_DEFERRED && moved >= 0) { /* (no move tried: the tet is as it was) */
+    const uint32_t t = tet_of_vertices(P, verts, moved);
     if (t != I2M_DT_NONE) {
       s->t = t;
       s->meta = i2m_dt_meta(dt, t);

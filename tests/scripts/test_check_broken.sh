@@ -64,6 +64,8 @@ printf 'MeshVersionFormatted 2\nDimension 3\nBogus\n3\n' > "$T/keyword.mesh"
 { verts 8; printf '# i2m interface 1 = labels 0 1\nTriangles\n1\n1 2 3 1\nEnd\n'; } > "$T/trisonly.mesh"
 # the corner tet with label 0 (background): with --image, an extra label 0, not a crash
 sed 's/^1 2 3 4 7$/1 2 3 4 0/' "$T/corner.mesh" > "$T/corner0.mesh"
+# the corner tet with its apex 50 m away: each huge triangle gets a bounded number of samples
+sed 's/^0 0 1 0$/0 0 50000 0/' "$T/corner.mesh" > "$T/far.mesh"
 # Gmsh 4.1 ASCII corner tet from its sections (F format, E entities, N nodes, L elements);
 # a section twice would be read over the first one's arrays; out of order, labels go wrong
 gmsh() {
@@ -220,6 +222,7 @@ if [ -x "$BIN/i2m-mkimage" ] && [ -x "$TB/test_io_writers" ]; then
     done
     expect "$ck" other.mesh 1 "j['fidelity']['missing_labels'] >= 1 and j['fidelity']['hausdorff']['max_mm'] > 0.5 and any(s.startswith('require-labels') for s in j['violations'])" --image "$T/img.nrrd" --require-labels 1
     expect "$ck" corner0.mesh 1 "j['fidelity']['extra_labels'] == 1 and j['fidelity']['labels'][0]['label'] == 0" --image "$T/img.nrrd"
+    expect "$ck" far.mesh 0 "j['fidelity']['mesh_samples'] <= 4 * 33153 and j['fidelity']['mesh_to_image']['max_mm'] > 40000" --image "$T/img.nrrd"
   done
 else
   say "skip fidelity part (no i2m-mkimage or test_io_writers)"

@@ -253,8 +253,11 @@ static int64_t tri_divisions(const double *a, const double *b, const double *c, 
     const double *x = p[i], *y = p[(i + 1) % 3];
     l = fmax(l, sqrt(i2m_sq(x[0] - y[0]) + i2m_sq(x[1] - y[1]) + i2m_sq(x[2] - y[2])));
   }
+  /* A huge triangle (far beyond any mesh that overlays its image: 256 samples along an edge
+   * are 128 voxels) gets at most 33,153 samples, so a stray vertex costs a fraction of a
+   * second, not minutes. */
   double q = ceil(l / h);
-  int64_t n = q >= 2.0 ? (q < 4096.0 ? (int64_t)q : 4096) : 2; /* a huge triangle: bounded work */
+  int64_t n = q >= 2.0 ? (q < 256.0 ? (int64_t)q : 256) : 2;
   if (n % 2) n++;
   return n;
 }

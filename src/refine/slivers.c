@@ -26,7 +26,7 @@
 #include <string.h>
 
 #define MOVES_PER_VERTEX 8 /* random targets tried per vertex of a sliver */
-#define ROUNDS 10          /* rounds over the slivers left (later ones are short) */
+#define ROUNDS 20          /* rounds over the slivers left (later ones are short) */
 #define WALK_STEPS 64      /* a target farther than this from the vertex's old star: deferred */
 #define FIRST_STAGE 5.0    /* degrees: a higher bound is reached after the slivers below this */
 

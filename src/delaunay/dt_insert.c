@@ -380,14 +380,12 @@ static I2M_INLINE uint32_t fill_tet(const fill_t *f, uint32_t k, i2m_dt_bface_t 
   const uint32_t *cl = f->cavl + 4 * (size_t)(b.ki >> 2), t = f->newt[k];
   const uint32_t m = atomic_load_explicit(&f->meta[t], memory_order_relaxed);
   atomic_store_explicit(&f->meta[t], meta_reborn(m), memory_order_relaxed);
-  uint32_t w[4];
-  for (uint32_t s = 0; s < 4; s++) w[s] = s == i ? v : f->held[cl[s]];
+  uint32_t w[4] = {f->held[cl[0]], f->held[cl[1]], f->held[cl[2]], f->held[cl[3]]};
+  w[i] = v;
   memcpy(f->tv + 4 * (size_t)t, w, sizeof w);
   f->tn[4 * (size_t)t + i] = b.out;
   if (b.out != I2M_DT_NONE) f->tn[b.out] = 4 * t + i;
-  f->vtet[w[OTHER3[i][0]]] = t;
-  f->vtet[w[OTHER3[i][1]]] = t;
-  f->vtet[w[OTHER3[i][2]]] = t;
+  for (uint32_t s = 0; s < 4; s++) f->vtet[w[s]] = t; /* (v's is set once the refill ends) */
   return t;
 }
 
@@ -481,21 +479,11 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
     const i2m_dt_bface_t *bnd = ctx->bnd;
     for (uint32_t k = 0; k < nb; k++) {
       const i2m_dt_bface_t b = bnd[k];
-      switch (b.ki & 3) { /* constant slot indices in each case */
-        case 0: fill_direct(&f, k, b, 0, v); break;
-        case 1: fill_direct(&f, k, b, 1, v); break;
-        case 2: fill_direct(&f, k, b, 2, v); break;
-        default: fill_direct(&f, k, b, 3, v); break;
-      }
+      fill_direct(&f, k, b, b.ki & 3, v);
     }
     for (uint32_t k = 0; k < nb; k++) {
       const uint32_t ki = bnd[k].ki;
-      switch (ki & 3) {
-        case 0: link_direct(&f, k, ki, 0); break;
-        case 1: link_direct(&f, k, ki, 1); break;
-        case 2: link_direct(&f, k, ki, 2); break;
-        default: link_direct(&f, k, ki, 3); break;
-      }
+      link_direct(&f, k, ki, ki & 3);
     }
   } else {
     fill_hashed(ctx, v);

@@ -14,6 +14,10 @@ i2m_err_t i2m_error_set(i2m_err_t code, const char *file, int line, const char *
   va_start(ap, fmt);
   vsnprintf(error_message, sizeof error_message, fmt, ap);
   va_end(ap);
+  /* Messages quote text from bad files: a control character (a newline, a terminal escape)
+   * would break the one-line message or reach the user's terminal as a command. */
+  for (char *c = error_message; *c; c++)
+    if ((unsigned char)*c < 0x20 || *c == 0x7f) *c = '?';
 #ifdef I2M_DEBUG
   size_t n = strlen(error_message);
   snprintf(error_message + n, sizeof error_message - n, " [%s:%d]", file, line);

@@ -56,6 +56,7 @@ head -c 150 "$T/cube.mesh" > "$T/truncated.mesh"
 : > "$T/empty.mesh"
 printf '\001\002\377garbage\000\000' > "$T/junk.mesh"
 printf 'MeshVersionFormatted 2\nDimension 3\nBogus\n3\n' > "$T/keyword.mesh"
+printf 'MeshVersionFormatted 2\nDimension 3\nTetra\033[2J\001\n3\n' > "$T/ctrl.mesh" # echoed as '?'
 { verts 8; printf 'Tetrahedra\n99999999999\n1 2 3\n'; } > "$T/hugecount.mesh"
 # cut between two sections: without End it would read as a smaller, valid mesh
 { verts 8; printf 'Tetrahedra\n6\n%s\n' "$tets_ok"; } > "$T/noend.mesh"
@@ -121,6 +122,7 @@ expect() {
   if [ "$e_want" = 2 ]; then
     grep -q '^i2m-check: ' "$T/err.txt" || bad "$e_f: no 'i2m-check: ' error line"
     [ "$(wc -l < "$T/err.txt")" -le 2 ] || bad "$e_f: more than one error line"
+    ! LC_ALL=C grep -q '[[:cntrl:]]' "$T/err.txt" || bad "$e_f: a control character in the error line"
     say "ok   $e_f: unreadable (exit 2): $(head -n 1 "$T/err.txt")"
     return
   fi
@@ -145,7 +147,7 @@ run_all() {
   expect "$ck" nan.mesh 1 "'nonfinite_vertex' in v['errors'] and v['first_nonfinite_vertex'] == 8 and j['quality'] is None"
   expect "$ck" flat.mesh 1 "'degenerate' in v['errors'] and v['degenerate'] == 1 and v['first_degenerate_tet'] == 6"
   expect "$ck" badtri.mesh 1 "'file_triangle_not_interface' in v['errors'] and 'interface_missing_from_file' in v['errors'] and v['file_triangles_not_interface'] == 1 and v['file_triangle_label_mismatch'] == 1"
-  for f in truncated.mesh empty.mesh junk.mesh keyword.mesh hugecount.mesh missing.mesh noend.mesh \
+  for f in truncated.mesh empty.mesh junk.mesh keyword.mesh ctrl.mesh hugecount.mesh missing.mesh noend.mesh \
            dupelements.msh dupentities.msh dupnodes.msh lateentities.msh short.vtu; do
     expect "$ck" $f 2 ""
   done

@@ -37,6 +37,8 @@ mk --dims 5,5,5 --shape speck --labels 3 --type int16 --scale 0.5,0.25 -o "$T/sc
 # a .hdr/.img pair whose .img is cut: the message names the header the user gave, too
 mk --dims 6,5,4 -o "$T/pair.hdr"
 head -c 60 "$T/pair.img" >"$T/pair.cut" && mv "$T/pair.cut" "$T/pair.img"
+# control characters in a bad field (a terminal escape, a ^A) come out as '?'
+printf 'NRRD0004\ntype: \033[31mred\001\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n12345678' >"$T/ctrl.nrrd"
 printf 'NRRD0004\ntype: quaternion\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n12345678' >"$T/type.nrrd"
 printf 'ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_QUATERNION\nElementDataFile = LOCAL\n12345678' >"$T/type.mha"
 printf 'NRRD0004\ntype: uchar\ndimension: 3\nsizes: 100000 100000 100000\nencoding: raw\n\n12345678' >"$T/absurd.nrrd"
@@ -74,6 +76,7 @@ absurd.nrrd|holds only
 absurdgz.nrrd|cannot hold
 negative.nrrd|must be positive
 type.nrrd|unknown type \"quaternion\"
+ctrl.nrrd|unknown type \"?[31mred?\"
 type.mha|element type
 scaled.nii|non-integer
 pair.hdr|holds only 60 bytes
@@ -99,6 +102,8 @@ check() { # check INFO FILE WORD
     echo "FAIL $info $file: exit status $status"; fail=1
   elif [ "$lines" != 1 ]; then
     echo "FAIL $info $file: $lines lines on stderr:"; head -n 20 "$T/err"; fail=1
+  elif LC_ALL=C grep -q '[[:cntrl:]]' "$T/err"; then
+    echo "FAIL $info $file: a control character on stderr"; fail=1
   elif [ -s "$T/out" ]; then
     echo "FAIL $info $file: output on stdout"; fail=1
   elif ! printf '%s\n' "$msg" | grep -F "$file" >/dev/null; then

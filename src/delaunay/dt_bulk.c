@@ -20,22 +20,18 @@ static uint64_t hilbert_key(uint32_t X[3])
 {
   const uint32_t M = 1u << (HILBERT_BITS - 1);
   for (uint32_t Q = M; Q > 1; Q >>= 1) {
-    uint32_t P = Q - 1;
-    for (int i = 0; i < 3; i++) {
-      if (X[i] & Q) {
-        X[0] ^= P; /* invert the low bits of axis 0 */
-      } else {       /* exchange the low bits of axes 0 and i */
-        uint32_t t = (X[0] ^ X[i]) & P;
-        X[0] ^= t;
-        X[i] ^= t;
-      }
+    const uint32_t P = Q - 1;
+    for (int i = 0; i < 3; i++) { /* without branches: the bits are random, a branch would miss half the time */
+      const uint32_t set = 0u - ((X[i] & Q) != 0); /* all ones when the bit is set */
+      const uint32_t t = (X[0] ^ X[i]) & P & ~set;
+      X[0] ^= (P & set) | t; /* set: invert the low bits of axis 0; else exchange those of axes 0 and i */
+      X[i] ^= t;
     }
   }
   X[1] ^= X[0];
   X[2] ^= X[1];
   uint32_t t = 0;
-  for (uint32_t Q = M; Q > 1; Q >>= 1)
-    if (X[2] & Q) t ^= Q - 1;
+  for (uint32_t Q = M; Q > 1; Q >>= 1) t ^= (Q - 1) & (0u - ((X[2] & Q) != 0));
   for (int i = 0; i < 3; i++) X[i] ^= t;
   uint64_t key = 0;
   for (int b = HILBERT_BITS - 1; b >= 0; b--)

@@ -186,16 +186,26 @@ static I2M_INLINE int conflict(const search_t *s, const uint32_t l[4])
 
 /* The same for tet c (local numbers cl) with its vertex i replaced by local vertex w: the
  * neighbour across face i, negatively oriented, so < 0 when p is in its ball. */
-static I2M_INLINE int conflict_across(const search_t *s, const uint32_t cl[4], uint32_t i, uint32_t w)
+static I2M_INLINE double det_across(const search_t *s, const uint32_t cl[4], uint32_t i, uint32_t w)
 {
   const double *R = s->rows;
   const double *r[4] = {R + 4 * cl[0], R + 4 * cl[1], R + 4 * cl[2], R + 4 * cl[3]};
   r[i] = R + 4 * w;
-  const double det = i2m_insphere_det_rows(r[0], r[1], r[2], r[3]);
+  return i2m_insphere_det_rows(r[0], r[1], r[2], r[3]);
+}
+
+/* The sign of det_across, decided exactly when the cavity's bound does not certify it. */
+static I2M_INLINE int sign_across(const search_t *s, const uint32_t cl[4], uint32_t i, uint32_t w, double det)
+{
   if (I2M_LIKELY(fabs(det) > s->bound)) return (det > 0.0) - (det < 0.0);
   uint32_t fl[4] = {cl[0], cl[1], cl[2], cl[3]};
   fl[i] = w;
   return conflict_exact(s, fl);
+}
+
+static I2M_INLINE int conflict_across(const search_t *s, const uint32_t cl[4], uint32_t i, uint32_t w)
+{
+  return sign_across(s, cl, i, w, det_across(s, cl, i, w));
 }
 
 /* conflict_across for an apex w that has no local number (zone mode: a vertex outside the
@@ -241,32 +251,48 @@ static I2M_INLINE void cavity_push(search_t *s, uint32_t t, const uint32_t l[4])
   }
 }
 
-/* Face i of the k-th cavity tet c (local numbers cl): the neighbour across it joins the
- * cavity when p is in its ball, else the face is a boundary face.  The neighbour is c with
- * vertex i replaced by its apex, negatively oriented; the local numbers of its other
- * vertices are looked up only when it joins.  Inlined with a constant i. */
-static I2M_INLINE i2m_dt_status_t cavity_visit(search_t *s, uint32_t k, uint32_t c, const uint32_t cl[4], uint32_t i,
-                                               bool zoned, bool locking)
+/* What the visits of a cavity tet's four faces read first: the neighbour words n (4u + j),
+ * the neighbours' meta and their apexes (vertex j of u, that is tv[n]).  They are read for
+ * the four faces together, before any visit branches on a conflict test: the loads then run
+ * side by side instead of waiting for each other behind mispredicted branches.  A box-hull
+ * face (n = I2M_DT_NONE) reads tet 0's words instead, unused. */
+typedef struct {
+  uint32_t n[4], m[4], w[4];
+} faces_t;
+
+static I2M_INLINE void faces_read(const search_t *s, uint32_t c, faces_t *f)
 {
-  const uint32_t n = s->tn[4 * (size_t)c + i];
+  memcpy(f->n, s->tn + 4 * (size_t)c, sizeof f->n);
+  for (int i = 0; i < 4; i++) {
+    const uint32_t n = f->n[i] == I2M_DT_NONE ? 0 : f->n[i];
+    f->m[i] = atomic_load_explicit(&s->meta[n >> 2], memory_order_relaxed);
+    f->w[i] = s->tv[n];
+  }
+}
+
+/* Face i of the k-th cavity tet (local numbers cl; its words in f): the neighbour across it
+ * joins the cavity when p is in its ball, else the face is a boundary face.  The neighbour is
+ * the cavity tet with vertex i replaced by its apex, negatively oriented; the local numbers of
+ * its other vertices are looked up only when it joins.  Inlined with a constant i. */
+static I2M_INLINE i2m_dt_status_t cavity_visit(search_t *s, uint32_t k, const faces_t *f, const uint32_t cl[4],
+                                               uint32_t i, bool zoned, bool locking)
+{
+  const uint32_t n = f->n[i], m = f->m[i], w = f->w[i];
   if (I2M_UNLIKELY(n == I2M_DT_NONE)) { /* box hull */
     boundary_push(s, k << 2 | i, n);
     return I2M_DT_OK;
   }
-  const uint32_t u = n >> 2, j = n & 3;
-  const uint32_t m = atomic_load_explicit(&s->meta[u], memory_order_relaxed);
   if (m & I2M_TM_MARK) return I2M_DT_OK; /* inside the cavity: not a boundary face */
-  const uint32_t *uv = s->tv + 4 * (size_t)u;
-  if (zoned && I2M_UNLIKELY(!zone_holds(s->ctx, uv[j])) && (local_owner(s, uv[j]) != s->owner)) {
+  if (zoned && I2M_UNLIKELY(!zone_holds(s->ctx, w)) && (local_owner(s, w) != s->owner)) {
     /* zone mode: a vertex outside the zone may be read, not numbered; u may stay outside */
-    if (conflict_across_unnumbered(s, cl, i, uv[j]) < 0) {
+    if (conflict_across_unnumbered(s, cl, i, w) < 0) {
       s->ctx->conflict_owner = 0;
       return I2M_DT_ROLLBACK;
     }
     boundary_push(s, k << 2 | i, n);
     return I2M_DT_OK;
   }
-  const int64_t lw = search_vertex(s, uv[j], locking);
+  const int64_t lw = search_vertex(s, w, locking);
   if (I2M_UNLIKELY(lw < 0)) return I2M_DT_ROLLBACK;
   if (conflict_across(s, cl, i, (uint32_t)lw) >= 0) {
     I2M_PREFETCH_WRITE((const void *)&s->tn[n]); /* the refill links the outside tet back to its new neighbour */
@@ -275,9 +301,63 @@ static I2M_INLINE i2m_dt_status_t cavity_visit(search_t *s, uint32_t k, uint32_t
   }
   if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
   if (row_is_origin(s, (uint32_t)lw)) return I2M_DT_DUPLICATE;
+  const uint32_t *uv = s->tv + 4 * (size_t)(n >> 2);
   const uint32_t ul[4] = {local_number(s, uv[0]), local_number(s, uv[1]), local_number(s, uv[2]), local_number(s, uv[3])};
-  cavity_push(s, u, ul);
+  cavity_push(s, n >> 2, ul);
   return I2M_DT_OK;
+}
+
+/* The unzoned search visits a cavity tet's faces in two passes.  The first numbers the apex of
+ * every neighbour not yet in the cavity and computes its conflict determinant; the second
+ * decides each face.  The determinants of the four faces then run side by side, none waiting
+ * behind the (unpredictable) outcome of another.  The error bound only grows while the first
+ * pass numbers apexes, so the bound the second pass compares with covers every row used. */
+static I2M_INLINE i2m_dt_status_t face_measure(search_t *s, const faces_t *f, const uint32_t cl[4], uint32_t i,
+                                               bool locking, uint32_t lw[4], double det[4])
+{
+  if (f->n[i] == I2M_DT_NONE || (f->m[i] & I2M_TM_MARK)) return I2M_DT_OK;
+  const int64_t l = search_vertex(s, f->w[i], locking);
+  if (I2M_UNLIKELY(l < 0)) return I2M_DT_ROLLBACK;
+  lw[i] = (uint32_t)l;
+  det[i] = det_across(s, cl, i, (uint32_t)l);
+  return I2M_DT_OK;
+}
+
+static I2M_INLINE i2m_dt_status_t face_decide(search_t *s, uint32_t k, const faces_t *f, const uint32_t cl[4],
+                                              uint32_t i, uint32_t lw, double det)
+{
+  const uint32_t n = f->n[i], m = f->m[i];
+  if (I2M_UNLIKELY(n == I2M_DT_NONE)) { /* box hull */
+    boundary_push(s, k << 2 | i, n);
+    return I2M_DT_OK;
+  }
+  if (m & I2M_TM_MARK) return I2M_DT_OK;
+  if (sign_across(s, cl, i, lw, det) >= 0) {
+    I2M_PREFETCH_WRITE((const void *)&s->tn[n]); /* the refill links the outside tet back to its new neighbour */
+    boundary_push(s, k << 2 | i, n);
+    return I2M_DT_OK;
+  }
+  if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
+  if (row_is_origin(s, lw)) return I2M_DT_DUPLICATE;
+  const uint32_t *uv = s->tv + 4 * (size_t)(n >> 2);
+  const uint32_t ul[4] = {local_number(s, uv[0]), local_number(s, uv[1]), local_number(s, uv[2]), local_number(s, uv[3])};
+  cavity_push(s, n >> 2, ul);
+  return I2M_DT_OK;
+}
+
+static I2M_INLINE i2m_dt_status_t faces_visit(search_t *s, uint32_t k, const faces_t *f, const uint32_t cl[4],
+                                              bool locking)
+{
+  uint32_t lw[4] = {0, 0, 0, 0};
+  double det[4] = {0, 0, 0, 0};
+  if (face_measure(s, f, cl, 0, locking, lw, det) != I2M_DT_OK || face_measure(s, f, cl, 1, locking, lw, det) != I2M_DT_OK ||
+      face_measure(s, f, cl, 2, locking, lw, det) != I2M_DT_OK || face_measure(s, f, cl, 3, locking, lw, det) != I2M_DT_OK)
+    return I2M_DT_ROLLBACK;
+  i2m_dt_status_t st;
+  if ((st = face_decide(s, k, f, cl, 0, lw[0], det[0])) != I2M_DT_OK) return st;
+  if ((st = face_decide(s, k, f, cl, 1, lw[1], det[1])) != I2M_DT_OK) return st;
+  if ((st = face_decide(s, k, f, cl, 2, lw[2], det[2])) != I2M_DT_OK) return st;
+  return face_decide(s, k, f, cl, 3, lw[3], det[3]);
 }
 
 /* Requests the words of the vertices across the faces of cavity tet t (their lock words and
@@ -301,15 +381,20 @@ static I2M_INLINE i2m_dt_status_t cavity_search_in(search_t *s, bool zoned, bool
 {
   for (uint32_t k = 0; k < s->ncav; k++) {
     if (!search_room(s, 4)) return I2M_DT_FULL;
-    const uint32_t c = s->cav[k];
     uint32_t cl[4];
     memcpy(cl, s->cavl + 4 * (size_t)k, sizeof cl);
+    faces_t f;
+    faces_read(s, s->cav[k], &f);
     if (k + 1 < s->ncav) prefetch_apexes(s, s->cav[k + 1]);
     i2m_dt_status_t st;
-    if ((st = cavity_visit(s, k, c, cl, 0, zoned, locking)) != I2M_DT_OK) return st;
-    if ((st = cavity_visit(s, k, c, cl, 1, zoned, locking)) != I2M_DT_OK) return st;
-    if ((st = cavity_visit(s, k, c, cl, 2, zoned, locking)) != I2M_DT_OK) return st;
-    if ((st = cavity_visit(s, k, c, cl, 3, zoned, locking)) != I2M_DT_OK) return st;
+    if (!zoned) {
+      if ((st = faces_visit(s, k, &f, cl, locking)) != I2M_DT_OK) return st;
+      continue;
+    }
+    if ((st = cavity_visit(s, k, &f, cl, 0, zoned, locking)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(s, k, &f, cl, 1, zoned, locking)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(s, k, &f, cl, 2, zoned, locking)) != I2M_DT_OK) return st;
+    if ((st = cavity_visit(s, k, &f, cl, 3, zoned, locking)) != I2M_DT_OK) return st;
   }
   return I2M_DT_OK;
 }

@@ -270,52 +270,26 @@ static I2M_INLINE void faces_read(const search_t *s, uint32_t c, faces_t *f)
   }
 }
 
-/* Face i of the k-th cavity tet (local numbers cl; its words in f): the neighbour across it
- * joins the cavity when p is in its ball, else the face is a boundary face.  The neighbour is
- * the cavity tet with vertex i replaced by its apex, negatively oriented; the local numbers of
- * its other vertices are looked up only when it joins.  Inlined with a constant i. */
-static I2M_INLINE i2m_dt_status_t cavity_visit(search_t *s, uint32_t k, const faces_t *f, const uint32_t cl[4],
-                                               uint32_t i, bool zoned, bool locking)
-{
-  const uint32_t n = f->n[i], m = f->m[i], w = f->w[i];
-  if (I2M_UNLIKELY(n == I2M_DT_NONE)) { /* box hull */
-    boundary_push(s, k << 2 | i, n);
-    return I2M_DT_OK;
-  }
-  if (m & I2M_TM_MARK) return I2M_DT_OK; /* inside the cavity: not a boundary face */
-  if (zoned && I2M_UNLIKELY(!zone_holds(s->ctx, w)) && (local_owner(s, w) != s->owner)) {
-    /* zone mode: a vertex outside the zone may be read, not numbered; u may stay outside */
-    if (conflict_across_unnumbered(s, cl, i, w) < 0) {
-      s->ctx->conflict_owner = 0;
-      return I2M_DT_ROLLBACK;
-    }
-    boundary_push(s, k << 2 | i, n);
-    return I2M_DT_OK;
-  }
-  const int64_t lw = search_vertex(s, w, locking);
-  if (I2M_UNLIKELY(lw < 0)) return I2M_DT_ROLLBACK;
-  if (conflict_across(s, cl, i, (uint32_t)lw) >= 0) {
-    I2M_PREFETCH_WRITE((const void *)&s->tn[n]); /* the refill links the outside tet back to its new neighbour */
-    boundary_push(s, k << 2 | i, n);
-    return I2M_DT_OK;
-  }
-  if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
-  if (row_is_origin(s, (uint32_t)lw)) return I2M_DT_DUPLICATE;
-  const uint32_t *uv = s->tv + 4 * (size_t)(n >> 2);
-  const uint32_t ul[4] = {local_number(s, uv[0]), local_number(s, uv[1]), local_number(s, uv[2]), local_number(s, uv[3])};
-  cavity_push(s, n >> 2, ul);
-  return I2M_DT_OK;
-}
-
-/* The unzoned search visits a cavity tet's faces in two passes.  The first numbers the apex of
- * every neighbour not yet in the cavity and computes its conflict determinant; the second
- * decides each face.  The determinants of the four faces then run side by side, none waiting
- * behind the (unpredictable) outcome of another.  The error bound only grows while the first
- * pass numbers apexes, so the bound the second pass compares with covers every row used. */
+/* The search visits a cavity tet's four faces in two passes.  The first numbers the apex of
+ * every neighbour not yet in the cavity and computes its conflict determinant (zone mode: the
+ * sign itself, for an apex outside the zone, which is read but not numbered); the second
+ * decides each face: the neighbour joins the cavity when p is in its ball, else the face is a
+ * boundary face.  The determinants of the four faces run side by side, none waiting behind
+ * the (unpredictable) outcome of another.  The error bound only grows while the first pass
+ * numbers apexes, so the bound the second pass compares with covers every row used.  The
+ * neighbour is the cavity tet with vertex i replaced by the apex, negatively oriented; the
+ * local numbers of its other vertices are looked up only when it joins.  Inlined with a
+ * constant i. */
 static I2M_INLINE i2m_dt_status_t face_measure(search_t *s, const faces_t *f, const uint32_t cl[4], uint32_t i,
-                                               bool locking, uint32_t lw[4], double det[4])
+                                               bool zoned, bool locking, uint32_t lw[4], double det[4])
 {
   if (f->n[i] == I2M_DT_NONE || (f->m[i] & I2M_TM_MARK)) return I2M_DT_OK;
+  if (zoned && I2M_UNLIKELY(!zone_holds(s->ctx, f->w[i])) && (local_owner(s, f->w[i]) != s->owner)) {
+    /* zone mode: a vertex outside the zone may be read, not numbered; its sign is decided now */
+    lw[i] = I2M_DT_NONE;
+    det[i] = conflict_across_unnumbered(s, cl, i, f->w[i]);
+    return I2M_DT_OK;
+  }
   const int64_t l = search_vertex(s, f->w[i], locking);
   if (I2M_UNLIKELY(l < 0)) return I2M_DT_ROLLBACK;
   lw[i] = (uint32_t)l;
@@ -324,7 +298,7 @@ static I2M_INLINE i2m_dt_status_t face_measure(search_t *s, const faces_t *f, co
 }
 
 static I2M_INLINE i2m_dt_status_t face_decide(search_t *s, uint32_t k, const faces_t *f, const uint32_t cl[4],
-                                              uint32_t i, uint32_t lw, double det)
+                                              uint32_t i, uint32_t lw, double det, bool zoned)
 {
   const uint32_t n = f->n[i], m = f->m[i];
   if (I2M_UNLIKELY(n == I2M_DT_NONE)) { /* box hull */
@@ -332,6 +306,14 @@ static I2M_INLINE i2m_dt_status_t face_decide(search_t *s, uint32_t k, const fac
     return I2M_DT_OK;
   }
   if (m & I2M_TM_MARK) return I2M_DT_OK;
+  if (zoned && lw == I2M_DT_NONE) { /* an apex outside the zone: the neighbour must stay outside */
+    if (det < 0) {
+      s->ctx->conflict_owner = 0;
+      return I2M_DT_ROLLBACK;
+    }
+    boundary_push(s, k << 2 | i, n);
+    return I2M_DT_OK;
+  }
   if (sign_across(s, cl, i, lw, det) >= 0) {
     I2M_PREFETCH_WRITE((const void *)&s->tn[n]); /* the refill links the outside tet back to its new neighbour */
     boundary_push(s, k << 2 | i, n);
@@ -346,18 +328,20 @@ static I2M_INLINE i2m_dt_status_t face_decide(search_t *s, uint32_t k, const fac
 }
 
 static I2M_INLINE i2m_dt_status_t faces_visit(search_t *s, uint32_t k, const faces_t *f, const uint32_t cl[4],
-                                              bool locking)
+                                              bool zoned, bool locking)
 {
   uint32_t lw[4] = {0, 0, 0, 0};
   double det[4] = {0, 0, 0, 0};
-  if (face_measure(s, f, cl, 0, locking, lw, det) != I2M_DT_OK || face_measure(s, f, cl, 1, locking, lw, det) != I2M_DT_OK ||
-      face_measure(s, f, cl, 2, locking, lw, det) != I2M_DT_OK || face_measure(s, f, cl, 3, locking, lw, det) != I2M_DT_OK)
+  if (face_measure(s, f, cl, 0, zoned, locking, lw, det) != I2M_DT_OK ||
+      face_measure(s, f, cl, 1, zoned, locking, lw, det) != I2M_DT_OK ||
+      face_measure(s, f, cl, 2, zoned, locking, lw, det) != I2M_DT_OK ||
+      face_measure(s, f, cl, 3, zoned, locking, lw, det) != I2M_DT_OK)
     return I2M_DT_ROLLBACK;
   i2m_dt_status_t st;
-  if ((st = face_decide(s, k, f, cl, 0, lw[0], det[0])) != I2M_DT_OK) return st;
-  if ((st = face_decide(s, k, f, cl, 1, lw[1], det[1])) != I2M_DT_OK) return st;
-  if ((st = face_decide(s, k, f, cl, 2, lw[2], det[2])) != I2M_DT_OK) return st;
-  return face_decide(s, k, f, cl, 3, lw[3], det[3]);
+  if ((st = face_decide(s, k, f, cl, 0, lw[0], det[0], zoned)) != I2M_DT_OK) return st;
+  if ((st = face_decide(s, k, f, cl, 1, lw[1], det[1], zoned)) != I2M_DT_OK) return st;
+  if ((st = face_decide(s, k, f, cl, 2, lw[2], det[2], zoned)) != I2M_DT_OK) return st;
+  return face_decide(s, k, f, cl, 3, lw[3], det[3], zoned);
 }
 
 /* Requests the words of the vertices across the faces of cavity tet t (their lock words and
@@ -386,15 +370,8 @@ static I2M_INLINE i2m_dt_status_t cavity_search_in(search_t *s, bool zoned, bool
     faces_t f;
     faces_read(s, s->cav[k], &f);
     if (k + 1 < s->ncav) prefetch_apexes(s, s->cav[k + 1]);
-    i2m_dt_status_t st;
-    if (!zoned) {
-      if ((st = faces_visit(s, k, &f, cl, locking)) != I2M_DT_OK) return st;
-      continue;
-    }
-    if ((st = cavity_visit(s, k, &f, cl, 0, zoned, locking)) != I2M_DT_OK) return st;
-    if ((st = cavity_visit(s, k, &f, cl, 1, zoned, locking)) != I2M_DT_OK) return st;
-    if ((st = cavity_visit(s, k, &f, cl, 2, zoned, locking)) != I2M_DT_OK) return st;
-    if ((st = cavity_visit(s, k, &f, cl, 3, zoned, locking)) != I2M_DT_OK) return st;
+    const i2m_dt_status_t st = faces_visit(s, k, &f, cl, zoned, locking);
+    if (st != I2M_DT_OK) return st;
   }
   return I2M_DT_OK;
 }

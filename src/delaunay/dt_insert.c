@@ -314,16 +314,20 @@ static I2M_INLINE i2m_dt_status_t face_decide(search_t *s, uint32_t k, const fac
     boundary_push(s, k << 2 | i, n);
     return I2M_DT_OK;
   }
-  if (sign_across(s, cl, i, lw, det) >= 0) {
-    I2M_PREFETCH_WRITE((const void *)&s->tn[n]); /* the refill links the outside tet back to its new neighbour */
-    boundary_push(s, k << 2 | i, n);
-    return I2M_DT_OK;
-  }
-  if (m & I2M_TM_FROZEN) return I2M_DT_FROZEN;
-  if (row_is_origin(s, lw)) return I2M_DT_DUPLICATE;
-  const uint32_t *uv = s->tv + 4 * (size_t)(n >> 2);
-  const uint32_t ul[4] = {local_number(s, uv[0]), local_number(s, uv[1]), local_number(s, uv[2]), local_number(s, uv[3])};
-  cavity_push(s, n >> 2, ul);
+  /* Both outcomes are written and the counts advance by the one taken: the outcome is a coin
+   * toss for the branch predictor.  Room for one more of each was made (search_room). */
+  const uint32_t join = sign_across(s, cl, i, lw, det) < 0, u = n >> 2;
+  if (I2M_UNLIKELY(join & (((m & I2M_TM_FROZEN) != 0) | row_is_origin(s, lw))))
+    return (m & I2M_TM_FROZEN) ? I2M_DT_FROZEN : I2M_DT_DUPLICATE;
+  I2M_PREFETCH_WRITE((const void *)&s->tn[n]); /* a boundary face: the refill links the outside tet back */
+  s->bnd[s->nbnd] = (i2m_dt_bface_t){k << 2 | i, n};
+  s->nbnd += 1 - join;
+  const uint32_t *uv = s->tv + 4 * (size_t)u; /* all four numbered: three from the cavity tet, and the apex */
+  uint32_t *ul = s->cavl + 4 * (size_t)s->ncav;
+  for (int x = 0; x < 4; x++) ul[x] = local_number(s, uv[x]);
+  s->cav[s->ncav] = u;
+  s->ncav += join;
+  atomic_store_explicit(&s->meta[u], m | (join ? I2M_TM_MARK : 0), memory_order_relaxed); /* u is ours: its vertices are held */
   return I2M_DT_OK;
 }
 

@@ -676,24 +676,57 @@ static inline bool beyond_face(const i2m_dt_t *dt, const uint32_t *v, uint32_t i
   return i2m_orient3d(q[0], q[1], q[2], q[3]) < 0;
 }
 
+/* The first of the faces in mask (bit i: face i) in the order r, r + 1, ... (mod 4), or 4
+ * when the mask is empty; from a table, without branches. */
+static inline uint32_t first_face_from(uint32_t mask, uint32_t r)
+{
+  static const uint8_t LOWEST[16] = {4, 0, 1, 0, 2, 0, 1, 0, 3, 0, 1, 0, 2, 0, 1, 0};
+  r &= 3;
+  const uint32_t rotated = ((mask >> r) | (mask << (4 - r))) & 15;
+  return rotated ? (LOWEST[rotated] + r) & 3 : 4;
+}
+
+/* One step of the walk decided face by face, exactly where the floating-point sign is not
+ * certain: the next tet (through the first face in the order r, r + 1, ... that p lies
+ * beyond), or I2M_DT_NONE when p is in t. */
+static I2M_NOINLINE uint32_t walk_step_exact(const i2m_dt_t *dt, uint32_t t, uint32_t prev, const double *p,
+                                             const double o[4], double bound, uint32_t r)
+{
+  const uint32_t *v = dt->tv + 4 * (size_t)t;
+  for (uint32_t k = 0; k < 4; k++) {
+    uint32_t i = (r + k) & 3;
+    uint32_t n = dt->tn[4 * t + i];
+    if (n == I2M_DT_NONE || (n >> 2) == prev) continue;
+    if (beyond_face(dt, v, i, p, o[i], bound)) return n >> 2;
+  }
+  return I2M_DT_NONE;
+}
+
+/* The walk moves through a face p lies beyond, chosen at random among them (so that it cannot
+ * cycle), never back to the tet it came from.  The choice is made from bit masks: which face
+ * it takes is a coin toss for a branch predictor. */
 uint32_t i2m_dt_locate(i2m_dt_ctx_t *ctx, const double p[3], uint32_t start)
 {
   const i2m_dt_t *dt = ctx->dt;
   uint32_t t = start, prev = I2M_DT_NONE;
   uint64_t rng = walk_seed(p);
   for (;;) {
-    const uint32_t *v = dt->tv + 4 * (size_t)t;
+    const uint32_t *v = dt->tv + 4 * (size_t)t, *tn = dt->tn + 4 * (size_t)t;
     double o[4], bound;
     face_orients(dt, v, p, o, &bound);
-    uint32_t r = rng_next(&rng), next = I2M_DT_NONE;
-    for (uint32_t k = 0; k < 4; k++) {
-      uint32_t i = (r + k) & 3;
-      uint32_t n = dt->tn[4 * t + i];
-      if (n == I2M_DT_NONE || (n >> 2) == prev) continue;
-      if (beyond_face(dt, v, i, p, o[i], bound)) {
-        next = n >> 2;
-        break;
-      }
+    const uint32_t r = rng_next(&rng);
+    uint32_t open = 0, beyond = 0, unsure = 0;
+    for (uint32_t i = 0; i < 4; i++) {
+      open |= (uint32_t)((tn[i] != I2M_DT_NONE) & ((tn[i] >> 2) != prev)) << i;
+      beyond |= (uint32_t)(o[i] < -bound) << i;
+      unsure |= (uint32_t)(fabs(o[i]) <= bound) << i;
+    }
+    uint32_t next;
+    if (I2M_LIKELY(!(unsure & open))) {
+      const uint32_t i = first_face_from(beyond & open, r);
+      next = i < 4 ? tn[i] >> 2 : I2M_DT_NONE;
+    } else {
+      next = walk_step_exact(dt, t, prev, p, o, bound, r);
     }
     ctx->n_walk_steps++;
     if (next == I2M_DT_NONE) return t;

@@ -316,16 +316,14 @@ static I2M_INLINE i2m_dt_status_t face_decide(search_t *s, uint32_t k, const fac
   }
   /* Both outcomes are written and the counts advance by the one taken: the outcome is a coin
    * toss for the branch predictor.  Room for one more of each was made (search_room). */
+  /* p on the apex makes its row zero and the determinant exactly zero: checked only then */
+  if (I2M_UNLIKELY(!(fabs(det) > s->bound)) && row_is_origin(s, lw)) return I2M_DT_DUPLICATE;
   const uint32_t join = sign_across(s, cl, i, lw, det) < 0, u = n >> 2;
-  if (I2M_UNLIKELY(join & (((m & I2M_TM_FROZEN) != 0) | row_is_origin(s, lw))))
-    return (m & I2M_TM_FROZEN) ? I2M_DT_FROZEN : I2M_DT_DUPLICATE;
+  if (I2M_UNLIKELY(join & ((m & I2M_TM_FROZEN) != 0))) return I2M_DT_FROZEN;
   I2M_PREFETCH_WRITE((const void *)&s->tn[n]); /* a boundary face: the refill links the outside tet back */
   s->bnd[s->nbnd] = (i2m_dt_bface_t){k << 2 | i, n};
   s->nbnd += 1 - join;
-  const uint32_t *uv = s->tv + 4 * (size_t)u; /* all four numbered: three from the cavity tet, and the apex */
-  uint32_t *ul = s->cavl + 4 * (size_t)s->ncav;
-  for (int x = 0; x < 4; x++) ul[x] = local_number(s, uv[x]);
-  s->cav[s->ncav] = u;
+  s->cav[s->ncav] = u; /* (the local numbers of its vertices are looked up when it is visited) */
   s->ncav += join;
   atomic_store_explicit(&s->meta[u], m | (join ? I2M_TM_MARK : 0), memory_order_relaxed); /* u is ours: its vertices are held */
   return I2M_DT_OK;
@@ -369,10 +367,11 @@ static I2M_INLINE i2m_dt_status_t cavity_search_in(search_t *s, bool zoned, bool
 {
   for (uint32_t k = 0; k < s->ncav; k++) {
     if (!search_room(s, 4)) return I2M_DT_FULL;
-    uint32_t cl[4];
-    memcpy(cl, s->cavl + 4 * (size_t)k, sizeof cl);
+    const uint32_t c = s->cav[k], *cv = s->tv + 4 * (size_t)c;
+    uint32_t *cl = s->cavl + 4 * (size_t)k; /* all numbered when c joined; kept for the refill */
+    for (int x = 0; x < 4; x++) cl[x] = local_number(s, cv[x]);
     faces_t f;
-    faces_read(s, s->cav[k], &f);
+    faces_read(s, c, &f);
     if (k + 1 < s->ncav) prefetch_apexes(s, s->cav[k + 1]);
     const i2m_dt_status_t st = faces_visit(s, k, &f, cl, zoned, locking);
     if (st != I2M_DT_OK) return st;

@@ -294,6 +294,33 @@ static void test_duplicates(void)
   i2m_dt_destroy(&dt);
 }
 
+/* Every point given twice (the copies in another order, on a lattice where everything is
+ * cospherical and at random): each copy is refused as a duplicate, and the mesh is the one of
+ * the points given once. */
+static void test_duplicates_all(void)
+{
+  enum { N = 1000 };
+  static double xyz[2 * 3 * N];
+  for (int lattice = 0; lattice < 2; lattice++) {
+    for (int i = 0; i < N; i++)
+      for (int a = 0; a < 3; a++)
+        xyz[3 * i + a] = lattice ? (double)((i / (a == 0 ? 1 : a == 1 ? 10 : 100)) % 10) : urand();
+    for (int i = 0; i < N; i++) memcpy(xyz + 3 * (N + i), xyz + 3 * ((7 * i) % N), 3 * sizeof *xyz);
+    int64_t ndup = 0, n1 = 0, n2 = 0;
+    i2m_dt_t *once = make_dt(-10, 20, N), *twice = make_dt(-10, 20, 2 * N);
+    CU_ASSERT_FATAL(i2m_dt_insert_points(once, xyz, N, 8, 5, NULL, NULL) == I2M_OK);
+    CU_ASSERT_FATAL(i2m_dt_insert_points(twice, xyz, 2 * N, 8, 5, NULL, &ndup) == I2M_OK);
+    CU_ASSERT_EQUAL(ndup, N);
+    assert_valid(twice);
+    /* the same vertices: 2N points make one BRIO round, where a point and its copy share a
+     * Hilbert key and go in index order, so the first copy is the one kept */
+    CU_ASSERT_EQUAL(i2m_dt_checksum(once, &n1), i2m_dt_checksum(twice, &n2));
+    CU_ASSERT_EQUAL(n1, n2);
+    i2m_dt_destroy(&once);
+    i2m_dt_destroy(&twice);
+  }
+}
+
 /* A vertex with a star of about a thousand tets (the centre of points on a sphere): removing
  * it grows the scratch for stars, re-inserting it needs a cavity as large; both must work
  * from whichever scratch the other left (a regression: the cavity's local-index rows once
@@ -355,6 +382,7 @@ static void test_box(void)
 static const test_case_t cases[] = {
     {"virtual box", test_box},
     {"duplicates refused", test_duplicates},
+    {"every point twice: each copy refused", test_duplicates_all},
     {"random points valid and Delaunay", test_random_points},
     {"random points: order-independent", test_random_order_independent},
     {"lattice (cospherical): order-independent", test_lattice_order_independent},

@@ -393,19 +393,20 @@ static i2m_dt_status_t cavity_search(search_t *s)
 
 /* ---- refill ---- */
 
-/* Adjacency of the new tets.  New tet k (boundary face k with p at slot i) has three faces
- * through p; face j meets the cavity boundary in an edge, which the oriented boundary of the
- * tet runs as (p, a, b) with (a, b) = EDGE_DIR[i][j] (the induced orientation (-1)^j of the
- * face, rotated to start at p).  The tet across that face runs the same edge as (b, a), so a
- * table indexed by directed edges of local numbers links every face: the first pass files
- * each face under (a, b), the second reads its partner under (b, a).  Every edge read was
- * filed in the same insertion, so the table never needs clearing.  It fits cavities whose
- * vertices have local numbers below EDGE_TABLE_SIDE and up to 16383 boundary faces; larger
- * ones use the hash (ctx_edge_link). */
-static const uint8_t EDGE_DIR[4][4][2] = {{{0, 0}, {3, 2}, {1, 3}, {2, 1}},
-                                          {{2, 3}, {0, 0}, {3, 0}, {0, 2}},
-                                          {{3, 1}, {0, 3}, {0, 0}, {1, 0}},
-                                          {{1, 2}, {2, 0}, {0, 1}, {0, 0}}};
+/* New tet k joins the new vertex p to boundary face k, face i of its cavity tet: it is the
+ * cavity tet with vertex i replaced by p, its vertices put in the order (a, b, c, p) by an even
+ * permutation (FACE_ORDER[i] then p), so that it stays positive and p is at slot 3 in every
+ * new tet: the refill's slot indices are constants.
+ *
+ * Adjacency.  New tet (a, b, c, p) meets its neighbours through p across its faces 0, 1, 2,
+ * that is along the edges (b, c), (c, a), (a, b) of its boundary face.  The boundary faces,
+ * seen from p, are consistently oriented, so the neighbour across a face runs the same edge
+ * the other way.  A table indexed by directed edges of local numbers therefore links every
+ * face: the first pass files each face under its edge, the second reads its partner under
+ * the reversed edge.  Every edge read was filed in the same insertion, so the table never
+ * needs clearing.  It fits cavities whose vertices have local numbers below EDGE_TABLE_SIDE
+ * and up to 16383 boundary faces; larger ones use the hash (ctx_edge_link). */
+static const uint8_t FACE_ORDER[4][3] = {{2, 1, 3}, {0, 2, 3}, {1, 0, 3}, {0, 1, 2}};
 #define EDGE_TABLE_SIDE 128u
 
 static bool edge_table_ready(i2m_dt_ctx_t *ctx, uint32_t nb)
@@ -435,53 +436,56 @@ static I2M_INLINE uint16_t *edge_entry(const fill_t *f, uint32_t a, uint32_t b)
   return f->etab2 + (a * EDGE_TABLE_SIDE + b);
 }
 
-/* The three slots other than i. */
-static const uint8_t OTHER3[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
-
-/* New tet k: boundary face b (face i of its cavity tet) joined to the new vertex v.  Inlined
- * with a constant i, so every slot index is a constant. */
-static I2M_INLINE uint32_t fill_tet(const fill_t *f, uint32_t k, i2m_dt_bface_t b, uint32_t i, uint32_t v)
+/* The local numbers of new tet k's vertices a, b, c (see FACE_ORDER). */
+static I2M_INLINE void face_locals(const fill_t *f, i2m_dt_bface_t b, uint32_t l[3])
 {
-  const uint32_t *cl = f->cavl + 4 * (size_t)(b.ki >> 2), t = f->newt[k];
+  const uint32_t *cl = f->cavl + 4 * (size_t)(b.ki >> 2);
+  const uint8_t *o = FACE_ORDER[b.ki & 3];
+  l[0] = cl[o[0]], l[1] = cl[o[1]], l[2] = cl[o[2]];
+}
+
+/* New tet k (its slot newt[k]): vertices, the outside neighbour across face 3, and the
+ * incident-tet hints of a, b, c. */
+static I2M_INLINE uint32_t fill_tet(const fill_t *f, uint32_t k, i2m_dt_bface_t b, const uint32_t l[3], uint32_t v)
+{
+  const uint32_t t = f->newt[k];
   const uint32_t m = atomic_load_explicit(&f->meta[t], memory_order_relaxed);
   atomic_store_explicit(&f->meta[t], meta_reborn(m), memory_order_relaxed);
-  uint32_t w[4] = {f->held[cl[0]], f->held[cl[1]], f->held[cl[2]], f->held[cl[3]]};
-  w[i] = v;
+  const uint32_t w[4] = {f->held[l[0]], f->held[l[1]], f->held[l[2]], v};
   memcpy(f->tv + 4 * (size_t)t, w, sizeof w);
-  f->tn[4 * (size_t)t + i] = b.out;
-  if (b.out != I2M_DT_NONE) f->tn[b.out] = 4 * t + i;
-  for (uint32_t s = 0; s < 4; s++) f->vtet[w[s]] = t; /* (v's is set once the refill ends) */
+  f->tn[4 * (size_t)t + 3] = b.out;
+  if (b.out != I2M_DT_NONE) f->tn[b.out] = 4 * t + 3;
+  f->vtet[w[0]] = f->vtet[w[1]] = f->vtet[w[2]] = t; /* (v's is set once the refill ends) */
   return t;
 }
 
-/* Files face j of new tet k under its directed boundary edge (see EDGE_DIR). */
-static I2M_INLINE void file_face(const fill_t *f, uint32_t k, const uint32_t *cl, uint32_t i, uint32_t j)
+/* First pass: new tet k, its faces 0, 1, 2 filed under the edges (b, c), (c, a), (a, b). */
+static I2M_INLINE void fill_direct(const fill_t *f, uint32_t k, i2m_dt_bface_t b, uint32_t v)
 {
-  *edge_entry(f, cl[EDGE_DIR[i][j][0]], cl[EDGE_DIR[i][j][1]]) = (uint16_t)(k << 2 | j);
+  uint32_t l[3];
+  face_locals(f, b, l);
+  fill_tet(f, k, b, l, v);
+  *edge_entry(f, l[1], l[2]) = (uint16_t)(k << 2 | 0);
+  *edge_entry(f, l[2], l[0]) = (uint16_t)(k << 2 | 1);
+  *edge_entry(f, l[0], l[1]) = (uint16_t)(k << 2 | 2);
 }
 
-/* Face j of new tet t from the partner filed under the reversed edge. */
-static I2M_INLINE void link_face(const fill_t *f, uint32_t t, const uint32_t *cl, uint32_t i, uint32_t j)
+/* Face j of new tet t from the partner filed under the reversed edge (x, y). */
+static I2M_INLINE void link_face(const fill_t *f, uint32_t t, uint32_t j, uint32_t x, uint32_t y)
 {
-  const uint32_t e = *edge_entry(f, cl[EDGE_DIR[i][j][1]], cl[EDGE_DIR[i][j][0]]);
+  const uint32_t e = *edge_entry(f, x, y);
   f->tn[4 * (size_t)t + j] = 4 * f->newt[e >> 2] + (e & 3);
 }
 
-static I2M_INLINE void fill_direct(const fill_t *f, uint32_t k, i2m_dt_bface_t b, uint32_t i, uint32_t v)
+/* Second pass: the faces 0, 1, 2 of new tet k linked. */
+static I2M_INLINE void link_direct(const fill_t *f, uint32_t k, i2m_dt_bface_t b)
 {
-  fill_tet(f, k, b, i, v);
-  const uint32_t *cl = f->cavl + 4 * (size_t)(b.ki >> 2);
-  file_face(f, k, cl, i, OTHER3[i][0]);
-  file_face(f, k, cl, i, OTHER3[i][1]);
-  file_face(f, k, cl, i, OTHER3[i][2]);
-}
-
-static I2M_INLINE void link_direct(const fill_t *f, uint32_t k, uint32_t ki, uint32_t i)
-{
-  const uint32_t *cl = f->cavl + 4 * (size_t)(ki >> 2), t = f->newt[k];
-  link_face(f, t, cl, i, OTHER3[i][0]);
-  link_face(f, t, cl, i, OTHER3[i][1]);
-  link_face(f, t, cl, i, OTHER3[i][2]);
+  uint32_t l[3];
+  face_locals(f, b, l);
+  const uint32_t t = f->newt[k];
+  link_face(f, t, 0, l[2], l[1]);
+  link_face(f, t, 1, l[0], l[2]);
+  link_face(f, t, 2, l[1], l[0]);
 }
 
 /* The new tets of a cavity too large for the edge table: adjacency through the hash. */
@@ -490,8 +494,10 @@ static I2M_NOINLINE void fill_hashed(i2m_dt_ctx_t *ctx, uint32_t v)
   const fill_t f = fill_begin(ctx);
   for (uint32_t k = 0; k < ctx->nbnd; k++) {
     const i2m_dt_bface_t b = ctx->bnd[k];
-    const uint32_t i = b.ki & 3, t = fill_tet(&f, k, b, i, v);
-    for (uint32_t x = 0; x < 3; x++) ctx_edge_link(ctx, t, i, OTHER3[i][x]);
+    uint32_t l[3];
+    face_locals(&f, b, l);
+    const uint32_t t = fill_tet(&f, k, b, l, v);
+    for (uint32_t j = 0; j < 3; j++) ctx_edge_link(ctx, t, 3, j);
   }
 }
 
@@ -542,14 +548,8 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   if (direct) {
     const fill_t f = fill_begin(ctx);
     const i2m_dt_bface_t *bnd = ctx->bnd;
-    for (uint32_t k = 0; k < nb; k++) {
-      const i2m_dt_bface_t b = bnd[k];
-      fill_direct(&f, k, b, b.ki & 3, v);
-    }
-    for (uint32_t k = 0; k < nb; k++) {
-      const uint32_t ki = bnd[k].ki;
-      link_direct(&f, k, ki, ki & 3);
-    }
+    for (uint32_t k = 0; k < nb; k++) fill_direct(&f, k, bnd[k], v);
+    for (uint32_t k = 0; k < nb; k++) link_direct(&f, k, bnd[k]);
   } else {
     fill_hashed(ctx, v);
   }

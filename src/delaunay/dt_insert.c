@@ -203,12 +203,7 @@ static I2M_INLINE int sign_across(const search_t *s, const uint32_t cl[4], uint3
   return conflict_exact(s, fl);
 }
 
-static I2M_INLINE int conflict_across(const search_t *s, const uint32_t cl[4], uint32_t i, uint32_t w)
-{
-  return sign_across(s, cl, i, w, det_across(s, cl, i, w));
-}
-
-/* conflict_across for an apex w that has no local number (zone mode: a vertex outside the
+/* The sign of det_across for an apex w that has no local number (zone mode: a vertex outside the
  * zone, which may be read but not numbered), from its row computed on the spot. */
 static I2M_NOINLINE int conflict_across_unnumbered(search_t *s, const uint32_t cl[4], uint32_t i, uint32_t w)
 {
@@ -235,11 +230,10 @@ static I2M_INLINE void boundary_push(search_t *s, uint32_t ki, uint32_t out)
   s->bnd[s->nbnd++] = (i2m_dt_bface_t){ki, out};
 }
 
-/* Tet t (local numbers l) joins the cavity; the words of its neighbours, which the search
- * visits later, start loading. */
-static I2M_INLINE void cavity_push(search_t *s, uint32_t t, const uint32_t l[4])
+/* The seed t is the first cavity tet (its local numbers are looked up when it is visited);
+ * the words of its neighbours, which the search reads first, start loading. */
+static I2M_INLINE void cavity_push_seed(search_t *s, uint32_t t)
 {
-  memcpy(s->cavl + 4 * (size_t)s->ncav, l, 4 * sizeof *l);
   s->cav[s->ncav++] = t;
   atomic_store_explicit(&s->meta[t], atomic_load_explicit(&s->meta[t], memory_order_relaxed) | I2M_TM_MARK,
                         memory_order_relaxed);
@@ -314,12 +308,12 @@ static I2M_INLINE i2m_dt_status_t face_decide(search_t *s, uint32_t k, const fac
     boundary_push(s, k << 2 | i, n);
     return I2M_DT_OK;
   }
-  /* Both outcomes are written and the counts advance by the one taken: the outcome is a coin
-   * toss for the branch predictor.  Room for one more of each was made (search_room). */
   /* p on the apex makes its row zero and the determinant exactly zero: checked only then */
   if (I2M_UNLIKELY(!(fabs(det) > s->bound)) && row_is_origin(s, lw)) return I2M_DT_DUPLICATE;
   const uint32_t join = sign_across(s, cl, i, lw, det) < 0, u = n >> 2;
   if (I2M_UNLIKELY(join & ((m & I2M_TM_FROZEN) != 0))) return I2M_DT_FROZEN;
+  /* Both outcomes are written and the counts advance by the one taken: the outcome is a coin
+   * toss for the branch predictor.  Room for one more of each was made (search_room). */
   I2M_PREFETCH_WRITE((const void *)&s->tn[n]); /* a boundary face: the refill links the outside tet back */
   s->bnd[s->nbnd] = (i2m_dt_bface_t){k << 2 | i, n};
   s->nbnd += 1 - join;
@@ -593,7 +587,7 @@ static i2m_dt_status_t cavity_seed(search_t *s, uint32_t seed, uint32_t seed_met
   for (int i = 0; i < 4; i++)
     if (row_is_origin(s, l4[i])) return I2M_DT_DUPLICATE;
   if (conflict(s, l4) <= 0) return I2M_DT_NOT_IN_CONFLICT;
-  cavity_push(s, seed, l4);
+  cavity_push_seed(s, seed);
   return I2M_DT_OK;
 }
 

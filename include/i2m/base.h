@@ -116,10 +116,11 @@ i2m_err_t i2m_realloc(size_t n, size_t size, void *ptr);
 void i2m_malloc_tune(void);
 /** free(*ptr); *ptr = NULL.  Accepts NULL. */
 void i2m_free(void *ptr);
-/** i2m_realloc for the large, randomly accessed arrays (the mesh): blocks of several MB are
- *  advised to use transparent huge pages where the system offers them (Linux
- *  madvise(MADV_HUGEPAGE); a no-op elsewhere).  Random access over hundreds of MB then
- *  misses the TLB far less often, and first touches fault 2 MB at a time. */
+/** i2m_realloc for the large, randomly accessed arrays (the mesh).  With the environment
+ *  variable I2M_HUGEPAGES=1, blocks of several MB are advised to use transparent huge pages
+ *  where the system offers them (Linux madvise(MADV_HUGEPAGE); a no-op elsewhere): random
+ *  access over hundreds of MB then misses the TLB less often, and first touches fault 2 MB at
+ *  a time, which some machines make dearer than it saves. */
 i2m_err_t i2m_realloc_large(size_t n, size_t size, void *ptr);
 
 /* ---- logging ---- */

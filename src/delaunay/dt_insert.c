@@ -248,8 +248,9 @@ static I2M_INLINE void cavity_push_seed(search_t *s, uint32_t t)
 /* What the visits of a cavity tet's four faces read first: the neighbour words n (4u + j),
  * the neighbours' meta and their apexes (vertex j of u, that is tv[n]).  They are read for
  * the four faces together, before any visit branches on a conflict test: the loads then run
- * side by side instead of waiting for each other behind mispredicted branches.  A box-hull
- * face (n = I2M_DT_NONE) reads tet 0's words instead, unused. */
+ * side by side instead of waiting for each other behind mispredicted branches.  The
+ * neighbours' words cannot change meanwhile: each shares three vertices with the cavity tet,
+ * which the context holds. */
 typedef struct {
   uint32_t n[4], m[4], w[4];
 } faces_t;
@@ -258,7 +259,12 @@ static I2M_INLINE void faces_read(const search_t *s, uint32_t c, faces_t *f)
 {
   memcpy(f->n, s->tn + 4 * (size_t)c, sizeof f->n);
   for (int i = 0; i < 4; i++) {
-    const uint32_t n = f->n[i] == I2M_DT_NONE ? 0 : f->n[i];
+    const uint32_t n = f->n[i];
+    if (I2M_UNLIKELY(n == I2M_DT_NONE)) { /* box hull: nothing to read (another thread may be
+                                             rewriting whatever a stand-in index would name) */
+      f->m[i] = f->w[i] = 0;
+      continue;
+    }
     f->m[i] = atomic_load_explicit(&s->meta[n >> 2], memory_order_relaxed);
     f->w[i] = s->tv[n];
   }

@@ -278,8 +278,8 @@ static I2M_INLINE void faces_read(const search_t *s, uint32_t c, faces_t *f)
  * the (unpredictable) outcome of another.  The error bound only grows while the first pass
  * numbers apexes, so the bound the second pass compares with covers every row used.  The
  * neighbour is the cavity tet with vertex i replaced by the apex, negatively oriented; the
- * local numbers of its other vertices are looked up only when it joins.  Inlined with a
- * constant i. */
+ * local numbers of all its vertices are looked up once it is visited, if it joins.  Inlined
+ * with a constant i. */
 static I2M_INLINE i2m_dt_status_t face_measure(search_t *s, const faces_t *f, const uint32_t cl[4], uint32_t i,
                                                bool zoned, bool locking, uint32_t lw[4], double det[4])
 {

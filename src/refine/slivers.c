@@ -511,6 +511,16 @@ static void pass_free(i2m_refine_t *r)
   i2m_free(&r->slivers);
 }
 
+/* The moves tried and kept so far, over every worker. */
+static void moves_so_far(const i2m_refine_t *r, const struct sliver_pass *S, int64_t *tried, int64_t *kept)
+{
+  *tried = *kept = 0;
+  for (int k = 0; k < r->nworkers; k++) {
+    *tried += S->per[k].tried;
+    *kept += S->per[k].kept;
+  }
+}
+
 /* When the stage is over and the bound asked for is higher, the next stage lists the tets
  * below it.  (With a high bound from the start, the many mild slivers would take the rounds
  * and leave the worst as they were: the smallest angle came out lower at 10 degrees than at
@@ -554,8 +564,8 @@ i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
 bool i2m_refine_slivers_has_work(const i2m_refine_t *r)
 {
   const struct sliver_pass *S = r->slivers;
-  int64_t kept = 0;
-  for (int k = 0; k < r->nworkers; k++) kept += S->per[k].kept;
+  int64_t tried, kept;
+  moves_so_far(r, S, &tried, &kept);
   return S->list.n > 0 && S->round - S->stage_start < ROUNDS && (S->round == S->stage_start || kept > S->kept_before_round);
 }
 
@@ -581,9 +591,8 @@ i2m_err_t i2m_refine_slivers_phase(i2m_refine_t *r, int color, const uint32_t **
   struct sliver_pass *S = r->slivers;
   tiling_t *g = r->tiling;
   if (color == 0) {
-    int64_t kept = 0;
-    for (int k = 0; k < r->nworkers; k++) kept += S->per[k].kept;
-    S->kept_before_round = kept;
+    int64_t tried;
+    moves_so_far(r, S, &tried, &S->kept_before_round);
     I2M_CALL(group_by_tile(r, S));
   }
   S->nactive = 0;
@@ -627,8 +636,8 @@ i2m_err_t i2m_refine_slivers_merge(i2m_refine_t *r)
 {
   struct sliver_pass *S = r->slivers;
   for (uint32_t i = 0; i < S->nactive; i++) i2m_dt_slots_release(r->dt, &r->tiling->tile[S->active[i]].slots);
-  int64_t tried = 0;
-  for (int k = 0; k < r->nworkers; k++) tried += S->per[k].tried;
+  int64_t tried, kept;
+  moves_so_far(r, S, &tried, &kept);
   i2m_progress_update(&S->progress, tried);
   return I2M_OK;
 }
@@ -660,10 +669,7 @@ i2m_err_t i2m_refine_slivers_end(i2m_refine_t *r, i2m_sliver_stats_t *st)
   struct sliver_pass *S = r->slivers;
   i2m_err_t err = I2M_OK;
   if (S) {
-    for (int k = 0; k < r->nworkers; k++) {
-      S->st.tried += S->per[k].tried;
-      S->st.kept += S->per[k].kept;
-    }
+    moves_so_far(r, S, &S->st.tried, &S->st.kept);
     err = collect_all(r, S->bound, &S->list, &S->st.min_after);
     S->st.slivers_after = (int64_t)S->list.n;
     S->st.seconds = i2m_wtime() - S->t0;

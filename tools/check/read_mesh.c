@@ -716,8 +716,9 @@ static int g_dbl(gm_t *g, double *v)
 #define G_NEED(g, cond, sec)                                                                 \
   I2M_CHECK(cond, I2M_ERR_INPUT, "%s: $%s: truncated or malformed", (g)->r.path, sec)
 
-static i2m_err_t gm_physical_names(gm_t *g)
+static i2m_err_t gm_physical_names(gm_t *g, ck_mesh_t *m)
 {
+  (void)m; /* (the signature of every section reader) */
   int64_t n;
   G_NEED(g, rd_i64(&g->r, &n) && count_fits(&g->r, n, 6), "PhysicalNames");
   I2M_CALL(i2m_malloc((size_t)n * 4, sizeof(int64_t), &g->phys));
@@ -746,8 +747,9 @@ static i2m_err_t gm_physical_names(gm_t *g)
   return I2M_OK;
 }
 
-static i2m_err_t gm_entities(gm_t *g)
+static i2m_err_t gm_entities(gm_t *g, ck_mesh_t *m)
 {
+  (void)m; /* (the signature of every section reader) */
   int64_t cnt[4], total = 0;
   for (int d = 0; d < 4; d++) {
     G_NEED(g, g_size(g, &cnt[d]) && count_fits(&g->r, cnt[d], 8), "Entities");
@@ -895,8 +897,9 @@ static i2m_err_t gm_elements(gm_t *g, ck_mesh_t *m)
   return I2M_OK;
 }
 
-static i2m_err_t gm_format(gm_t *g)
+static i2m_err_t gm_format(gm_t *g, ck_mesh_t *m)
 {
+  (void)m; /* (the signature of every section reader) */
   char ver[16];
   int64_t ft, ds;
   G_NEED(g, rd_word(&g->r, ver, sizeof ver) && rd_i64(&g->r, &ft) && rd_i64(&g->r, &ds),
@@ -919,29 +922,25 @@ static i2m_err_t gm_format(gm_t *g)
   return I2M_OK;
 }
 
-/* The sections read, in the order Gmsh writes them; others are skipped. */
-static const char *const GM_SECTIONS[] = {"$MeshFormat", "$PhysicalNames", "$Entities", "$Nodes",
-                                          "$Elements"};
+/* The sections read, in the order Gmsh writes them, with their readers; others are skipped. */
+static const struct {
+  const char *name;
+  i2m_err_t (*read)(gm_t *g, ck_mesh_t *m);
+} GM_SECTIONS[] = {{"$MeshFormat", gm_format}, {"$PhysicalNames", gm_physical_names},
+                   {"$Entities", gm_entities}, {"$Nodes", gm_nodes}, {"$Elements", gm_elements}};
 enum { GM_NSECTIONS = sizeof GM_SECTIONS / sizeof GM_SECTIONS[0] };
 
 static int gm_section_index(const char *sec)
 {
   for (int i = 0; i < GM_NSECTIONS; i++)
-    if (strcmp(sec, GM_SECTIONS[i]) == 0) return i;
+    if (strcmp(sec, GM_SECTIONS[i].name) == 0) return i;
   return -1;
 }
 
 /* Reads section @p which of GM_SECTIONS (-1: skips an unknown one up to @p endw). */
 static i2m_err_t gm_section(gm_t *g, int which, const char *sec, const char *endw, ck_mesh_t *m)
 {
-  switch (which) {
-  case 0: return gm_format(g);
-  case 1: return gm_physical_names(g);
-  case 2: return gm_entities(g);
-  case 3: return gm_nodes(g, m);
-  case 4: return gm_elements(g, m);
-  default: break;
-  }
+  if (which >= 0) return GM_SECTIONS[which].read(g, m);
   const char *e = find_str(g->r.p, g->r.end, endw);
   I2M_CHECK(e, I2M_ERR_INPUT, "%s: %s is not closed", g->r.path, sec);
   g->r.p = e;
@@ -971,7 +970,7 @@ static i2m_err_t read_gmsh(rd_t *r0, ck_mesh_t *m)
                    "%s: %s appears twice", g.r.path, sec);
     I2M_CHECK_GOTO(which < 0 || which > last, err, out, I2M_ERR_INPUT,
                    "%s: %s after %s (the sections must come in the order $MeshFormat "
-                   "$PhysicalNames $Entities $Nodes $Elements)", g.r.path, sec, GM_SECTIONS[last]);
+                   "$PhysicalNames $Entities $Nodes $Elements)", g.r.path, sec, GM_SECTIONS[last].name);
     if (which >= 0) last = which;
     snprintf(endw, sizeof endw, "$End%s", sec + 1);
     I2M_CALL_GOTO(err, out, gm_section(&g, which, sec, endw, m));

@@ -33,6 +33,9 @@ extern "C" {
 #endif
 
 #define I2M_DT_NONE UINT32_MAX
+/** A face whose neighbour lives on another rank (the dist layer): its tet is frozen.  Every
+ *  neighbour word at or above I2M_DT_REMOTE names no local tet. */
+#define I2M_DT_REMOTE (UINT32_MAX - 1)
 
 /** Vertex kinds. */
 enum { I2M_VK_DEAD = 0, I2M_VK_BOX = 1, I2M_VK_FREE = 2, I2M_VK_SURFACE = 3 };

@@ -73,6 +73,8 @@ typedef struct {
   int64_t junction_skips; /**< R5 skipped near junctions of three or more labels */
   int64_t tets_created;
   int64_t deferred;       /**< deterministic mode: elements left to the sequential pass */
+  int64_t bridges;        /**< free vertices the component rule inserted (R8, i2m_refine_bridge_splits) */
+  int64_t bridge_rounds;  /**< rounds of the component rule that found a split */
   int64_t fragments;      /**< fragments relabelled (i2m_refine_repair_fragments) */
   int64_t fragment_tets;  /**< their tets */
   double seconds;
@@ -221,6 +223,34 @@ void i2m_refine_release_mesh(i2m_refine_t *r);
  *  the transform (still alive); the same result on any number of threads; counted in the
  *  stats. */
 i2m_err_t i2m_refine_repair_fragments(i2m_refine_t *r);
+
+/** Image components of at least this many voxels must come out whole (one piece of tets). */
+#define I2M_WHOLE_MIN_VOXELS 10000
+
+/** Rounds of the component rule (bridges, then refinement) at most. */
+#define I2M_BRIDGE_ROUNDS 6
+
+/** The component rule (R8), after refinement has run dry: for every image component of at
+ *  least @p min_voxels voxels that two or more pieces of tets (not fragments) stand for, free
+ *  vertices at the centres of the fewest voxels of the component that join each piece but the
+ *  largest to another (voxels whose centres lie in tets of other labels).  Their new tets are
+ *  queued on worker 0: refinement must run again, then this rule, until *inserted is 0.
+ *  *splits: the split components found.  Alone (no other work on the mesh). */
+i2m_err_t i2m_refine_bridge_splits(i2m_refine_t *r, int64_t min_voxels, int64_t *splits, int64_t *inserted);
+
+/** Per label: how the image's 6-connected components come out in the mesh. */
+typedef struct {
+  int64_t value;            /**< original label value */
+  int64_t image_components; /**< 6-connected components of its voxels */
+  int64_t large_components; /**< of them, with at least the census's number of voxels */
+  int64_t mesh_pieces;      /**< face-connected pieces of its tets in the mesh */
+  int64_t split_components; /**< large components that two or more pieces (not fragments) stand for */
+} i2m_label_pieces_t;
+
+/** After refinement (and the fragments' repair): the census of every label's components and
+ *  pieces; large components have at least @p min_voxels voxels.  *out (owned, [nlabels],
+ *  by label index) is freed with i2m_free.  Uses the transform (still alive). */
+i2m_err_t i2m_refine_census(i2m_refine_t *r, int64_t min_voxels, i2m_label_pieces_t **out);
 
 /** The labelled mesh: tets whose circumcentre is inside, with their label value, and the
  *  interface triangles, in world coordinates, compacted.  Not collective. */

@@ -40,6 +40,8 @@ typedef struct {
   int threads, ranks;
   const i2m_threads_report_t *team;  /**< per-thread figures, or NULL */
   const i2m_quality_t *quality;
+ const i2m_label_pieces_t *pieces; /**< per label index: components and pieces, or NULL */
+  int64_t whole_min_voxels;         /**< the census's large components: at least this many voxels */
   double sliver_angle;               /**< the perturbation's bound (0: it did not run) */
   i2m_sliver_stats_t slivers;        /**< what it did */
 } i2m_report_t;

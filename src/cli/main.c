@@ -18,6 +18,7 @@ typedef struct {
   i2m_edt_t *edt;
   i2m_refine_t *ref;
   i2m_tetmesh_t *mesh;
+  i2m_label_pieces_t *pieces; /* per label: image components and mesh pieces */
   i2m_quality_t quality;
   i2m_threads_report_t team;
   i2m_report_t rep;
@@ -34,6 +35,18 @@ static void phase_end(run_t *r, int phase)
   r->rep.phase_seconds[phase] = i2m_wtime() - r->tphase;
   i2m_debug("i2m: %s done in %.2f s; resident %.0f MB, peak %.0f MB", i2m_phase_name(phase), r->rep.phase_seconds[phase],
             (double)i2m_current_rss_bytes() / 1048576.0, (double)i2m_peak_rss_bytes() / 1048576.0);
+}
+
+/* Every large image component the mesh splits, on stderr (even with --quiet: the mesh is
+ * then not what the user expects of it). */
+static void warn_split_components(const run_t *r)
+{
+  for (int l = 1; l < r->img->nlabels; l++) {
+    const i2m_label_pieces_t *p = &r->pieces[l];
+    if (p->split_components)
+      fprintf(stderr, "i2m: warning: label %lld: %lld of its %lld image components of >= %d voxels come out in several pieces\n",
+              (long long)p->value, (long long)p->split_components, (long long)p->large_components, I2M_WHOLE_MIN_VOXELS);
+  }
 }
 
 static i2m_err_t run_mesher(run_t *r)
@@ -65,6 +78,8 @@ static i2m_err_t run_mesher(run_t *r)
 
   phase_begin(r, "extraction");
   I2M_CALL(i2m_refine_repair_fragments(r->ref)); /* (asks the transform about the image) */
+  I2M_CALL(i2m_refine_census(r->ref, I2M_WHOLE_MIN_VOXELS, &r->pieces));
+  warn_split_components(r);
   i2m_edt_destroy(&r->edt);
   i2m_image_release_voxels(r->img);
   if (o->report) /* (only the JSON report gives it: one pass over the whole triangulation) */
@@ -103,6 +118,8 @@ static i2m_err_t report(run_t *r)
   rep->ranks = 1;
   rep->team = &r->team;
   rep->quality = &r->quality;
+  rep->pieces = r->pieces;
+  rep->whole_min_voxels = I2M_WHOLE_MIN_VOXELS;
   if (!r->opt.quiet) i2m_report_print(stdout, rep);
   if (r->opt.report) I2M_CALL(i2m_report_write_json(r->opt.report, rep));
   return I2M_OK;
@@ -111,6 +128,7 @@ static i2m_err_t report(run_t *r)
 static void run_free(run_t *r)
 {
   i2m_quality_free(&r->quality);
+  i2m_free(&r->pieces);
   i2m_threads_report_free(&r->team);
   i2m_tetmesh_destroy(&r->mesh);
   i2m_refine_destroy(&r->ref);

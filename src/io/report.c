@@ -12,6 +12,16 @@ const char *i2m_phase_name(int phase)
   return phase >= 0 && phase < I2M_NPHASES ? names[phase] : "?";
 }
 
+/* Large image components over all labels, and those the mesh splits. */
+static void pieces_totals(const i2m_report_t *r, int64_t *large, int64_t *split)
+{
+  *large = *split = 0;
+  for (int l = 1; r->pieces && r->img && l < r->img->nlabels; l++) {
+    *large += r->pieces[l].large_components;
+    *split += r->pieces[l].split_components;
+  }
+}
+
 static double tets_per_second(const i2m_report_t *r)
 {
   double t = r->phase_seconds[I2M_PHASE_REFINE];
@@ -26,13 +36,19 @@ void i2m_report_print(FILE *f, const i2m_report_t *r)
           r->params->ratio, r->params->facet_angle, r->params->size);
   fprintf(f, "  mesh         %lld vertices, %lld tetrahedra, %lld interface triangles\n", (long long)r->nv,
           (long long)r->nt, (long long)r->ntri);
-  fprintf(f, "  refinement   %lld insertions (R1 %lld, R2 %lld, R3 %lld, R4 %lld, R5 %lld, R6 %lld), %lld removals (R7)\n",
+  fprintf(f, "  refinement   %lld insertions (R1 %lld, R2 %lld, R3 %lld, R4 %lld, R5 %lld, R6 %lld, R8 %lld), %lld removals (R7)\n",
           (long long)r->stats.insertions, (long long)r->stats.rule[1], (long long)r->stats.rule[2],
           (long long)r->stats.rule[3], (long long)r->stats.rule[4], (long long)r->stats.rule[5],
-          (long long)r->stats.rule[6], (long long)r->stats.removals);
+          (long long)r->stats.rule[6], (long long)r->stats.bridges, (long long)r->stats.removals);
   if (r->stats.fragments)
     fprintf(f, "  fragments    %lld fragments (%lld tets) given a neighbour's label\n", (long long)r->stats.fragments,
             (long long)r->stats.fragment_tets);
+  if (r->pieces) {
+    int64_t large, split;
+    pieces_totals(r, &large, &split);
+    fprintf(f, "  components   %lld image components of >= %lld voxels, %lld of them split in the mesh\n", (long long)large,
+            (long long)r->whole_min_voxels, (long long)split);
+  }
   if (r->sliver_angle > 0) {
     const i2m_sliver_stats_t *v = &r->slivers;
     fprintf(f, "  slivers      %lld -> %lld tets with a dihedral angle below %.3g deg (smallest %.3g -> %.3g deg); %lld of %lld vertex moves kept\n",
@@ -115,8 +131,18 @@ static void json_params(FILE *f, const i2m_report_t *r)
   fprintf(f, "], \"threads\": %d, \"ranks\": %d},\n", r->threads, r->ranks);
 }
 
-static void json_quality(FILE *f, const i2m_quality_t *q)
+/* The label's census, by original value (NULL when there is none). */
+static const i2m_label_pieces_t *pieces_of(const i2m_report_t *r, int64_t value)
 {
+  if (!r->pieces || !r->img) return NULL;
+  for (int l = 0; l < r->img->nlabels; l++)
+    if (r->pieces[l].value == value) return &r->pieces[l];
+  return NULL;
+}
+
+static void json_quality(FILE *f, const i2m_report_t *r)
+{
+  const i2m_quality_t *q = r->quality;
   fprintf(f, "  \"quality\": {\"min_dihedral\": %.6g, \"max_dihedral\": %.6g, \"max_radius_edge\": %.6g, ",
           q->min_dihedral, q->max_dihedral, q->max_radius_edge);
   fprintf(f, "\"tets_above_ratio\": %lld, \"min_facet_angle\": %.6g, \"facets_below_angle\": %lld, ",
@@ -127,8 +153,14 @@ static void json_quality(FILE *f, const i2m_quality_t *q)
   for (int l = 0; l < q->nlabels; l++) {
     const i2m_label_figures_t *g = &q->labels[l];
     double err = g->voxel_volume > 0 ? 100.0 * (g->volume - g->voxel_volume) / g->voxel_volume : 0;
-    fprintf(f, "%s\n    {\"label\": %lld, \"tets\": %lld, \"volume_mm3\": %.8g, \"voxel_volume_mm3\": %.8g, \"volume_error_percent\": %.4g}",
+    fprintf(f, "%s\n    {\"label\": %lld, \"tets\": %lld, \"volume_mm3\": %.8g, \"voxel_volume_mm3\": %.8g, \"volume_error_percent\": %.4g",
             l ? "," : "", (long long)g->value, (long long)g->ntets, g->volume, g->voxel_volume, err);
+    const i2m_label_pieces_t *p = pieces_of(r, g->value);
+    if (p)
+      fprintf(f, ", \"image_components\": %lld, \"large_components\": %lld, \"mesh_pieces\": %lld, \"split_components\": %lld",
+              (long long)p->image_components, (long long)p->large_components, (long long)p->mesh_pieces,
+              (long long)p->split_components);
+    fprintf(f, "}");
   }
   fprintf(f, "\n  ],\n");
 }
@@ -149,10 +181,17 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
   fprintf(f, "  \"refinement\": {\"insertions\": %lld, \"removals\": %lld, \"rollbacks\": %lld, \"failed\": %lld, \"duplicates\": %lld, \"tets_created\": %lld, ",
           (long long)s->insertions, (long long)s->removals, (long long)s->rollbacks, (long long)s->failed,
           (long long)s->duplicates, (long long)s->tets_created);
-  fprintf(f, "\"fragments\": %lld, \"fragment_tets\": %lld, ", (long long)s->fragments, (long long)s->fragment_tets);
-  fprintf(f, "\"rules\": {\"R1\": %lld, \"R2\": %lld, \"R3\": %lld, \"R4\": %lld, \"R5\": %lld, \"R6\": %lld, \"R7\": %lld}},\n",
+  fprintf(f, "\"fragments\": %lld, \"fragment_tets\": %lld, \"bridges\": %lld, \"bridge_rounds\": %lld, ",
+          (long long)s->fragments, (long long)s->fragment_tets, (long long)s->bridges, (long long)s->bridge_rounds);
+  if (r->pieces) {
+    int64_t large, split;
+    pieces_totals(r, &large, &split);
+    fprintf(f, "\"components\": {\"min_voxels\": %lld, \"large\": %lld, \"split\": %lld}, ", (long long)r->whole_min_voxels,
+            (long long)large, (long long)split);
+  }
+  fprintf(f, "\"rules\": {\"R1\": %lld, \"R2\": %lld, \"R3\": %lld, \"R4\": %lld, \"R5\": %lld, \"R6\": %lld, \"R7\": %lld, \"R8\": %lld}},\n",
           (long long)s->rule[1], (long long)s->rule[2], (long long)s->rule[3], (long long)s->rule[4],
-          (long long)s->rule[5], (long long)s->rule[6], (long long)s->rule[7]);
+          (long long)s->rule[5], (long long)s->rule[6], (long long)s->rule[7], (long long)s->bridges);
   if (r->sliver_angle > 0) {
     const i2m_sliver_stats_t *v = &r->slivers;
     fprintf(f, "  \"slivers\": {\"angle\": %.6g, \"before\": %lld, \"after\": %lld, \"min_dihedral_before\": %.6g, "
@@ -188,7 +227,7 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
     }
     fprintf(f, "]},\n");
   }
-  if (r->quality) json_quality(f, r->quality);
+  if (r->quality) json_quality(f, r);
   fprintf(f, "  \"version\": \"i2m 0.1\"\n}\n");
   int bad = ferror(f);
   bad |= fclose(f) != 0;

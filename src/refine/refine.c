@@ -147,6 +147,8 @@ void i2m_refine_destroy(i2m_refine_t **rp)
   vgrid_free(&r->freev);
   i2m_dt_destroy(&r->dt);
   i2m_free(&r->label_size);
+  i2m_components_free(&r->pieces_ic);
+  pieces_invalidate(r);
   i2m_free(rp);
 }
 
@@ -182,8 +184,10 @@ void i2m_refine_get_stats(const i2m_refine_t *r, i2m_refine_stats_t *s)
     s->junction_skips += w->junction_skips;
     s->tets_created += w->tets_created;
     s->deferred += w->deferred;
+    s->bridges += w->bridges;
     s->seconds = fmax(s->seconds, w->seconds);
   }
+  s->bridge_rounds = r->bridge_rounds;
   s->fragments = r->fragments;
   s->fragment_tets = r->fragment_tets;
 }
@@ -193,6 +197,7 @@ void i2m_refine_get_stats(const i2m_refine_t *r, i2m_refine_stats_t *s)
 i2m_err_t i2m_refine_set_workers(i2m_refine_t *r, int n)
 {
   I2M_CHECK(n >= 1 && n <= (int)I2M_DT_MAX_OWNERS, I2M_ERR_ARG, "between 1 and %u threads", I2M_DT_MAX_OWNERS);
+  pieces_invalidate(r); /* (refinement changes the mesh) */
   i2m_refine_worker_t *w = NULL;
   i2m_err_t err = I2M_OK;
   I2M_CALL(i2m_calloc((size_t)n, sizeof *w, &w)); /* zeroed: worker_free accepts the ones not set up */
@@ -363,4 +368,8 @@ void i2m_refine_release_scratch(i2m_refine_t *r)
   }
 }
 
-void i2m_refine_release_mesh(i2m_refine_t *r) { i2m_dt_destroy(&r->dt); }
+void i2m_refine_release_mesh(i2m_refine_t *r)
+{
+  pieces_invalidate(r);
+  i2m_dt_destroy(&r->dt);
+}

@@ -91,6 +91,58 @@ typedef struct {
   i2m_gidx_t gid;
 } pending_t;
 
+/* ---- pieces of the labelled mesh (pieces.c) ---- */
+
+#define PIECE_SMALL_TETS 64                 /* a fragment has at most this many tets, */
+#define PIECE_FRAGMENT_VOXELS 27.0          /* less than this many voxels of volume, */
+#define PIECE_FRAGMENT_MIN_IMAGE_VOXELS 64  /* lies in an image component at least this large */
+#define PIECE_FRAGMENT_SHARE 8.0            /* and holds less than 1/8 of it */
+
+/** A face-connected piece of the kept tets of one label. */
+typedef struct {
+  uint32_t root;     /* its smallest tet slot */
+  uint16_t label;
+  bool small;        /* at most PIECE_SMALL_TETS tets */
+  uint32_t start, n; /* small pieces: their tets are the low words of small[start .. start + n) */
+  double volume;     /* small pieces: their volume (mm^3) */
+  int64_t comp;      /* the image component it stands for (root run in pieces_ic), -1: none */
+} piece_t;
+
+typedef struct {
+  _Atomic uint32_t *par, *cnt; /* owned: [slots] each kept tet's piece index (pieces_index); its image
+                                  component if it was looked at (tets of small pieces, the first
+                                  tets of large ones), else UINT32_MAX (while building: roots, counts) */
+  uint64_t *small;             /* owned: [nsmall] root << 32 | slot of the tets of small pieces, sorted */
+  size_t nsmall;
+  piece_t *piece;              /* owned: [npieces] sorted by root */
+  size_t npieces;
+} pieces_t;
+
+/** An image component of at least the census's size that two or more pieces (not fragments)
+ *  stand for. */
+typedef struct {
+  int64_t comp;   /* its root run in pieces_ic */
+  uint16_t label;
+  uint32_t npieces;
+  uint32_t *pieces; /* owned: [npieces] the pieces' indices in pieces_t, in slot order */
+} split_t;
+
+/** The pieces of the current labelled mesh (builds r->pieces_ic on first use). */
+i2m_err_t pieces_build(i2m_refine_t *r, pieces_t *P);
+/** The same, kept in r until the mesh or a label changes (pieces_invalidate): the component
+ *  rule's last round, the fragments' repair and the census share one. */
+i2m_err_t pieces_get(i2m_refine_t *r, const pieces_t **out);
+void pieces_invalidate(i2m_refine_t *r);
+void pieces_free(pieces_t *P);
+/** The index of kept tet t's piece in P->piece. */
+uint32_t pieces_index(const pieces_t *P, uint32_t t);
+/** Is this piece a fragment (fragments.c gives it a neighbour's label)? */
+bool pieces_is_fragment(const i2m_refine_t *r, const piece_t *p);
+/** The image components of at least min_voxels that the mesh splits. */
+i2m_err_t pieces_splits(const i2m_refine_t *r, const pieces_t *P, int64_t min_voxels, split_t **out, size_t *nout);
+void splits_free(split_t **s, size_t n);
+double pieces_tet_volume(const i2m_dt_t *dt, uint32_t t);
+
 /* ---- the deterministic mode (tiles.c) ---- */
 
 #define TILE_NONE UINT32_MAX
@@ -179,6 +231,10 @@ struct i2m_refine {
   i2m_refine_worker_t *workers; /* owned: [nworkers] */
   int nworkers;
   int64_t fragments, fragment_tets; /* fragments relabelled (fragments.c) */
+  int64_t bridge_rounds;            /* rounds of the component rule that found a split (bridges.c) */
+  i2m_components_t pieces_ic;       /* the image's 6-connected components (pieces.c), once asked for */
+  pieces_t pieces;                  /* the pieces of the mesh as it is (pieces_get), when pieces_valid */
+  bool pieces_valid;
   struct sliver_pass *slivers;      /* owned: the sliver perturbation under way (slivers.c), or NULL */
 };
 

@@ -537,6 +537,7 @@ static i2m_err_t next_stage_if_done(i2m_refine_t *r, struct sliver_pass *S)
 i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
 {
   I2M_CHECK(!r->slivers, I2M_ERR_INTERNAL, "a sliver pass is already under way");
+  pieces_invalidate(r); /* (moves change the mesh) */
   I2M_CALL(i2m_calloc(1, sizeof *r->slivers, &r->slivers));
   struct sliver_pass *S = r->slivers;
   S->final_bound = bound;

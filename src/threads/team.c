@@ -394,12 +394,29 @@ static i2m_err_t run_tiled(team_t *tm, i2m_threads_report_t *rep)
   rep->tile_side = side; /* (the fine phase's, the last one set) */
   rep->rounds += rounds;
   rep->sequential_ops += seq;
+  {
+    i2m_refine_stats_t st;
+    i2m_refine_get_stats(r, &st);
+    i2m_debug("tiled phase: side %.3g mm, %lld rounds, %lld sequential ops; so far %lld deferred, %lld insertions", side,
+              (long long)rounds, (long long)seq, (long long)st.deferred, (long long)st.insertions);
+  }
   i2m_refine_tiling_end(r);
   return err;
 }
 
+/* One round of the component rule (between phases): *more when it inserted bridges, whose
+ * tets now wait on worker 0 for refinement. */
+static i2m_err_t bridge_round(i2m_refine_t *r, bool *more)
+{
+  int64_t splits, inserted;
+  I2M_CALL(i2m_refine_bridge_splits(r, I2M_WHOLE_MIN_VOXELS, &splits, &inserted));
+  if (splits) i2m_debug("component rule: %lld split components, %lld bridge vertices", (long long)splits, (long long)inserted);
+  *more = inserted > 0;
+  return I2M_OK;
+}
+
 /* The deterministic mode's phases: the coarse one, then every tet classified again and the
- * fine one. */
+ * fine one, then the component rule and refinement in turn. */
 static i2m_err_t refine_deterministic(team_t *tm, const i2m_threads_opts_t *o, i2m_threads_report_t *rep)
 {
   i2m_refine_t *r = tm->r;
@@ -422,6 +439,13 @@ static i2m_err_t refine_deterministic(team_t *tm, const i2m_threads_opts_t *o, i
     if (err == I2M_OK) err = i2m_refine_tiling_collect(r);
   }
   if (err == I2M_OK) err = run_tiled(tm, rep);
+  for (int round = 0; err == I2M_OK && round < I2M_BRIDGE_ROUNDS; round++) { /* the component rule */
+    bool more = false;
+    err = bridge_round(r, &more);
+    if (err == I2M_OK && more) err = i2m_refine_tiling_begin(r);
+    if (err == I2M_OK && more) err = run_tiled(tm, rep);
+    if (!more) break;
+  }
   i2m_refine_tiling_end(r); /* (after a failure too) */
   rep->coarse_seconds = coarse ? t1 - t0 : 0;
   rep->fine_seconds = i2m_wtime() - t1;
@@ -481,6 +505,12 @@ i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_t
   }
   double t1 = i2m_wtime();
   if (err == I2M_OK) err = run_phase(&tm, coarse);
+  for (int round = 0; err == I2M_OK && round < I2M_BRIDGE_ROUNDS; round++) { /* the component rule */
+    bool more = false;
+    err = bridge_round(r, &more);
+    if (err == I2M_OK && more) err = run_phase(&tm, false);
+    if (!more) break;
+  }
   rep->coarse_seconds = coarse ? t1 - t0 : 0;
   rep->fine_seconds = i2m_wtime() - t1;
   report_fill(&tm, rep);

@@ -550,7 +550,7 @@ static void fidelity_of(const i2m_image_t *img, const i2m_tetmesh_t *m, ck_fidel
   ck_topo_t topo;
   CU_ASSERT_FATAL(ck_validity(&c, &v, &topo) == I2M_OK);
   CU_ASSERT(v.valid);
-  CU_ASSERT_FATAL(ck_fidelity(&c, &topo, img, f) == I2M_OK);
+  CU_ASSERT_FATAL(ck_fidelity(&c, &topo, img, 1, f) == I2M_OK);
   ck_topo_free(&topo);
   ck_mesh_free(&c);
 }
@@ -708,9 +708,45 @@ static void test_components(void)
   CU_ASSERT_EQUAL(l->image_components, 3);
   CU_ASSERT_EQUAL(l->mesh_components, 3);
   CU_ASSERT_EQUAL(l->largest_component, 2);
+  ck_fidelity_whole(&f, 1); /* every component one piece */
+  CU_ASSERT_EQUAL(l->large_components, 3);
+  CU_ASSERT_EQUAL(l->split_components, 0);
   ck_fidelity_free(&f);
   i2m_tetmesh_destroy(&m);
   i2m_image_destroy(&img);
+}
+
+/* A bar of label 7 along x; in bar_cut its third voxel is label 8. */
+static int64_t bar(int64_t i, int64_t j, int64_t k)
+{
+  (void)i;
+  return j == 2 && k == 1 ? 7 : 0;
+}
+static int64_t bar_cut(int64_t i, int64_t j, int64_t k) { return i == 2 && j == 2 && k == 1 ? 8 : bar(i, j, k); }
+
+/* A mesh that cuts an image component in two: each piece stands for it (the circumcentres of
+ * a voxel's six tets are the voxel's centre), so it counts as split, and as whole again with
+ * a threshold above its size. */
+static void test_components_split(void)
+{
+  i2m_image_t *img = make_image(N_SMALL, SP_SMALL, NULL, bar), *cut = make_image(N_SMALL, SP_SMALL, NULL, bar_cut);
+  i2m_tetmesh_t *m = voxel_mesh(cut, 0, NULL);
+  ck_fidelity_t f;
+  fidelity_of(img, m, &f);
+  const ck_label_t *l = label_of(&f, 7);
+  CU_ASSERT_FATAL(l != NULL);
+  CU_ASSERT_EQUAL(l->image_components, 1);
+  CU_ASSERT_EQUAL(l->mesh_components, 2);
+  ck_fidelity_whole(&f, 6);
+  CU_ASSERT_EQUAL(l->large_components, 1);
+  CU_ASSERT_EQUAL(l->split_components, 1);
+  ck_fidelity_whole(&f, 7);
+  CU_ASSERT_EQUAL(l->large_components, 0);
+  CU_ASSERT_EQUAL(l->split_components, 0);
+  ck_fidelity_free(&f);
+  i2m_tetmesh_destroy(&m);
+  i2m_image_destroy(&img);
+  i2m_image_destroy(&cut);
 }
 
 /* ------------------------------------------------------------------ modes */
@@ -794,7 +830,7 @@ static const test_case_t cases[] = {
     {"fidelity_shift", test_fidelity_shift},
     {"fidelity_missing_label", test_fidelity_missing_label},
     {"weighted_percentiles", test_weighted_percentiles},
-    {"components", test_components},
+    {"components", test_components}, {"components_split", test_components_split},
 };
 
 static void remove_tmpdir(void)

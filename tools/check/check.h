@@ -111,8 +111,18 @@ typedef struct {
   int64_t tets;
   int64_t image_components, image_components_100, largest_component;
   int64_t mesh_components;
+  int64_t large_components, split_components; /* image components of >= the whole threshold;
+                                                  those that are not exactly one mesh piece */
   int in_image, in_mesh;
 } ck_label_t;
+
+/* An image component and the mesh pieces that stand for it: each piece (face-connected tets of one label) stands for the image component
+ * of its label that holds the circumcentres of the largest volume of its tets (a Delaunay
+ * image mesh labels a tet by the voxel that holds its circumcentre). */
+#define CK_WHOLE_DEFAULT 10000 /* the report's split components: of at least this many voxels */
+typedef struct {
+  int64_t value, voxels, pieces;
+} ck_component_t;
 
 typedef struct {
   double max, p99, mean;   /* mm */
@@ -121,6 +131,7 @@ typedef struct {
 } ck_dist_t;
 
 typedef struct {
+  int distances;               /* the distances below were computed */
   double min_spacing, sample_spacing;
   int64_t image_faces, mesh_samples;
   ck_dist_t mesh_to_image, image_to_mesh, two_sided;
@@ -135,12 +146,19 @@ typedef struct {
   int64_t missing_labels;      /* image labels absent from the mesh */
   int64_t extra_labels;        /* mesh labels absent from the image */
   int64_t image_components_total;
+  int64_t ncomponents;
+  ck_component_t *components;  /* owned: [ncomponents] every image component (label > 0) */
   double t_mesh_to_image, t_image_to_mesh, t_components; /* seconds */
 } ck_fidelity_t;
 
-i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image_t *img,
+/** Fidelity figures; the interface distances only when @p distances (they take most of the
+ *  time). */
+i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image_t *img, int distances,
                       ck_fidelity_t *f);
 void ck_fidelity_free(ck_fidelity_t *f);
+/** Per label: the image components of >= min_voxels voxels, and those that are not exactly
+ *  one mesh piece. */
+void ck_fidelity_whole(ck_fidelity_t *f, int64_t min_voxels);
 /** Mesh components per label (tets of one label sharing faces): comp[t] (owned) component
  *  id; *ncomp number of components. */
 i2m_err_t ck_mesh_components(const ck_mesh_t *m, const ck_topo_t *topo, int64_t **comp,
@@ -158,6 +176,10 @@ double ck_volume6(const double a[3], const double b[3], const double c[3], const
 double ck_dist2_point_triangle(const double p[3], const double a[3], const double b[3],
                                const double c[3]);
 /** Smallest planar angle of triangle abc in degrees. */
+/** The circumcentre of a tet relative to p0 (0: degenerate, no centre). */
+int ck_circumcentre_offset(const double p0[3], const double p1[3], const double p2[3], const double p3[3], double off[3]);
+/** Circumcentre of a tet (0: degenerate, no centre). */
+int ck_circumcentre(const double p0[3], const double p1[3], const double p2[3], const double p3[3], double cen[3]);
 double ck_min_angle_deg(const double a[3], const double b[3], const double c[3]);
 /** Value with nearest rank q (0..1) of a[0..n-1]; reorders a. */
 double ck_percentile(double *a, int64_t n, double q);

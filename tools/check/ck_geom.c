@@ -210,6 +210,31 @@ done:;
   return d;
 }
 
+int ck_circumcentre_offset(const double p0[3], const double p1[3], const double p2[3], const double p3[3], double off[3])
+{
+  double b[3], c[3], d[3];
+  for (int k = 0; k < 3; k++) {
+    b[k] = p1[k] - p0[k];
+    c[k] = p2[k] - p0[k];
+    d[k] = p3[k] - p0[k];
+  }
+  const double cd[3] = {c[1] * d[2] - c[2] * d[1], c[2] * d[0] - c[0] * d[2], c[0] * d[1] - c[1] * d[0]};
+  const double db[3] = {d[1] * b[2] - d[2] * b[1], d[2] * b[0] - d[0] * b[2], d[0] * b[1] - d[1] * b[0]};
+  const double bc[3] = {b[1] * c[2] - b[2] * c[1], b[2] * c[0] - b[0] * c[2], b[0] * c[1] - b[1] * c[0]};
+  const double den = 2.0 * dot3(b, cd);
+  if (den == 0.0) return 0;
+  const double bb = dot3(b, b), cc = dot3(c, c), dd = dot3(d, d);
+  for (int k = 0; k < 3; k++) off[k] = (bb * cd[k] + cc * db[k] + dd * bc[k]) / den;
+  return 1;
+}
+
+int ck_circumcentre(const double p0[3], const double p1[3], const double p2[3], const double p3[3], double cen[3])
+{
+  if (!ck_circumcentre_offset(p0, p1, p2, p3, cen)) return 0;
+  for (int k = 0; k < 3; k++) cen[k] += p0[k];
+  return 1;
+}
+
 double ck_min_angle_deg(const double a[3], const double b[3], const double c[3])
 {
   const double *v[3] = {a, b, c};

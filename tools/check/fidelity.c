@@ -562,7 +562,76 @@ static int64_t label_slot(const ck_fidelity_t *f, int64_t value)
   return f->nlabels && f->labels[lo].value == value ? lo : -1;
 }
 
-static i2m_err_t label_table(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image_t *img,
+/* A tet's vote: the piece it belongs to, the image component of its label that holds its
+ * circumcentre, its volume. */
+typedef struct {
+  int64_t piece, comp;
+  double w;
+} vote_t;
+
+static int cmp_vote(const void *a, const void *b)
+{
+  const vote_t *x = a, *y = b;
+  if (x->piece != y->piece) return x->piece < y->piece ? -1 : 1;
+  return (x->comp > y->comp) - (x->comp < y->comp);
+}
+
+/* The image component a tet's circumcentre lies in, if it is a voxel of the tet's label (-1). */
+static int64_t centre_component(const ck_mesh_t *m, const double *g, const i2m_image_t *img,
+                                const i2m_components_t *runs, int64_t t)
+{
+  const int64_t *q = m->tet + 4 * t;
+  double c[3];
+  if (!ck_circumcentre(g + 3 * q[0], g + 3 * q[1], g + 3 * q[2], g + 3 * q[3], c)) return -1;
+  int64_t v[3];
+  if (!i2m_image_voxel_at(img, c, v)) return -1;
+  const int l = i2m_image_label_voxel(img, v[0], v[1], v[2]);
+  if (img->label_value[l] != m->tet_label[t]) return -1;
+  return i2m_components_find(runs, v[0], v[1], v[2]);
+}
+
+/* For every image component, the mesh pieces that stand for it (comp: each tet's piece). */
+static i2m_err_t component_pieces(const ck_mesh_t *m, const ck_topo_t *topo, const double *g, const i2m_image_t *img,
+                                  const i2m_components_t *runs, const int64_t *comp, ck_fidelity_t *f)
+{
+  vote_t *vt = NULL;
+  int64_t nvt = 0, *pieces = NULL;
+  i2m_err_t err = I2M_OK;
+  I2M_CALL(i2m_malloc((size_t)(m->nt ? m->nt : 1), sizeof *vt, &vt));
+  for (int64_t t = 0; t < m->nt; t++) {
+    const int64_t c = centre_component(m, g, img, runs, t);
+    if (c >= 0) vt[nvt++] = (vote_t){comp[t], c, fabs(topo->vol[t])};
+  }
+  qsort(vt, (size_t)nvt, sizeof *vt, cmp_vote);
+  I2M_CALL_GOTO(err, out, i2m_calloc((size_t)(runs->nruns ? runs->nruns : 1), sizeof *pieces, &pieces));
+  for (int64_t i = 0, j; i < nvt; i = j) { /* each piece: the component with the most volume */
+    int64_t best = -1;
+    double bw = -1;
+    for (j = i; j < nvt && vt[j].piece == vt[i].piece;) {
+      int64_t k = j;
+      double w = 0;
+      for (; k < nvt && vt[k].piece == vt[i].piece && vt[k].comp == vt[j].comp; k++) w += vt[k].w;
+      if (w > bw) {
+        bw = w;
+        best = vt[j].comp;
+      }
+      j = k;
+    }
+    pieces[best]++;
+  }
+  for (int64_t r = 0; r < runs->nruns; r++) {
+    if (runs->par[r] != r || runs->lab[r] == 0) continue;
+    if (f->ncomponents % 256 == 0)
+      I2M_CALL_GOTO(err, out, i2m_realloc((size_t)f->ncomponents + 256, sizeof *f->components, &f->components));
+    f->components[f->ncomponents++] = (ck_component_t){img->label_value[runs->lab[r]], runs->size[r], pieces[r]};
+  }
+out:
+  i2m_free(&vt);
+  i2m_free(&pieces);
+  return err;
+}
+
+static i2m_err_t label_table(const ck_mesh_t *m, const ck_topo_t *topo, const double *g, const i2m_image_t *img,
                              i2m_components_t *runs, ck_fidelity_t *f)
 {
   int64_t *vals = NULL, nv = 0, *comp = NULL, ncomp;
@@ -604,6 +673,7 @@ static i2m_err_t label_table(const ck_mesh_t *m, const ck_topo_t *topo, const i2
   I2M_CALL_GOTO(err, out, ck_mesh_components(m, topo, &comp, &ncomp));
   for (int64_t t = 0; t < m->nt; t++)
     if (comp[t] == t) f->labels[label_slot(f, m->tet_label[t])].mesh_components++;
+  I2M_CALL_GOTO(err, out, component_pieces(m, topo, g, img, runs, comp, f));
   for (int i = 0; i < f->nlabels; i++) {
     ck_label_t *L = &f->labels[i];
     L->rel_error_pct = L->image_volume > 0 ? 100.0 * (L->mesh_volume - L->image_volume) / L->image_volume
@@ -700,7 +770,7 @@ static void worst_face(const i2m_image_t *img, i2m_components_t *runs, const vfa
   f->worst_thinnest[1] = sw ? w0 : w1;
 }
 
-i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image_t *img,
+i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image_t *img, int distances,
                       ck_fidelity_t *f)
 {
   double *g = NULL;
@@ -725,6 +795,12 @@ i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image
                      "fidelity figures", m->path, (long long)v, m->xyz[3 * v], m->xyz[3 * v + 1],
                      m->xyz[3 * v + 2], img->path);
   }
+  f->distances = distances;
+  if (!distances) {
+    I2M_CALL_GOTO(err, out, i2m_image_components(img, &runs));
+    I2M_CALL_GOTO(err, out, label_table(m, topo, g, img, &runs, f));
+    goto out;
+  }
   I2M_CALL_GOTO(err, out, image_faces(img, &faces, &nf));
   fc.f = faces;
   tctx_t tc = {g, topo->iface.v};
@@ -743,7 +819,7 @@ i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image
   f->t_image_to_mesh = t2 - t1;
   f->t_components = t3 - t2;
   if (worst >= 0) worst_face(img, &runs, faces + worst, f);
-  I2M_CALL_GOTO(err, out, label_table(m, topo, img, &runs, f));
+  I2M_CALL_GOTO(err, out, label_table(m, topo, g, img, &runs, f));
   ck_dist_t *a = &f->mesh_to_image, *b = &f->image_to_mesh, *t = &f->two_sided;
   *t = a->max >= b->max ? *a : *b;
   /* two-sided distribution: both directed distance sets pooled, each sample weighted by the
@@ -762,4 +838,20 @@ out:
   return err;
 }
 
-void ck_fidelity_free(ck_fidelity_t *f) { i2m_free(&f->labels); }
+void ck_fidelity_free(ck_fidelity_t *f)
+{
+  i2m_free(&f->labels);
+  i2m_free(&f->components);
+}
+
+void ck_fidelity_whole(ck_fidelity_t *f, int64_t min_voxels)
+{
+  for (int i = 0; i < f->nlabels; i++) f->labels[i].large_components = f->labels[i].split_components = 0;
+  for (int64_t k = 0; k < f->ncomponents; k++) {
+    const ck_component_t *c = &f->components[k];
+    if (c->voxels < min_voxels) continue;
+    ck_label_t *L = &f->labels[label_slot(f, c->value)];
+    L->large_components++;
+    L->split_components += c->pieces != 1;
+  }
+}

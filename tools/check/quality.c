@@ -47,17 +47,8 @@ static int dihedrals(const double *p[4], double ang[6])
 /* Circumradius / shortest edge; INFINITY for a degenerate tet. */
 static double radius_edge(const double *p[4])
 {
-  double b[3], c[3], d[3], bc[3], cd[3], db[3], cen[3];
-  sub(p[1], p[0], b);
-  sub(p[2], p[0], c);
-  sub(p[3], p[0], d);
-  cross(c, d, cd);
-  cross(d, b, db);
-  cross(b, c, bc);
-  double den = 2.0 * dot(b, cd);
-  if (den == 0.0) return INFINITY;
-  double bb = dot(b, b), cc = dot(c, c), dd = dot(d, d);
-  for (int k = 0; k < 3; k++) cen[k] = (bb * cd[k] + cc * db[k] + dd * bc[k]) / den;
+  double cen[3];
+  if (!ck_circumcentre_offset(p[0], p[1], p[2], p[3], cen)) return INFINITY;
   double r = sqrt(dot(cen, cen));
   double emin = INFINITY;
   for (int i = 0; i < 4; i++)

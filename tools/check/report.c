@@ -147,6 +147,7 @@ static void json_fidelity(FILE *f, const ck_fidelity_t *x)
 {
   double sp = x->min_spacing;
   fprintf(f, "\"fidelity\": {");
+  JB(f, "distances", x->distances, 0);
   JD(f, "min_spacing", sp, 0);
   JD(f, "sample_spacing", x->sample_spacing, 0);
   JI(f, "image_interface_faces", x->image_faces, 0);
@@ -175,6 +176,8 @@ static void json_fidelity(FILE *f, const ck_fidelity_t *x)
     JI(f, "image_components_100", L->image_components_100, 0);
     JI(f, "largest_component_voxels", L->largest_component, 0);
     JI(f, "mesh_components", L->mesh_components, 0);
+    JI(f, "large_components", L->large_components, 0);
+    JI(f, "split_components", L->split_components, 0);
     JB(f, "in_image", L->in_image, 0);
     JB(f, "in_mesh", L->in_mesh, 1);
     fprintf(f, "}");
@@ -310,22 +313,27 @@ static void text_fidelity(FILE *f, const ck_fidelity_t *x)
 {
   fprintf(f, "fidelity (min spacing %.4g mm, sample spacing %.4g mm, %lld image interface faces):\n",
           x->min_spacing, x->sample_spacing, (long long)x->image_faces);
-  text_dist(f, "mesh->image", &x->mesh_to_image, x->min_spacing);
-  text_dist(f, "image->mesh", &x->image_to_mesh, x->min_spacing);
-  text_dist(f, "two-sided", &x->two_sided, x->min_spacing);
-  fprintf(f, "  worst image face: labels %lld|%lld, their components %lld|%lld voxels, thinnest runs through it %.3g|%.3g mm\n",
+  if (x->distances) {
+    text_dist(f, "mesh->image", &x->mesh_to_image, x->min_spacing);
+    text_dist(f, "image->mesh", &x->image_to_mesh, x->min_spacing);
+    text_dist(f, "two-sided", &x->two_sided, x->min_spacing);
+  } else {
+    fprintf(f, "  distances not computed (--no-distances)\n");
+  }
+  if (x->distances) fprintf(f, "  worst image face: labels %lld|%lld, their components %lld|%lld voxels, thinnest runs through it %.3g|%.3g mm\n",
           (long long)x->worst_pair[0], (long long)x->worst_pair[1], (long long)x->worst_component[0],
           (long long)x->worst_component[1], x->worst_thinnest[0], x->worst_thinnest[1]);
   fprintf(f, "  labels: %d, missing from the mesh %lld, not in the image %lld\n", x->nlabels,
           (long long)x->missing_labels, (long long)x->extra_labels);
-  fprintf(f, "  %8s %10s %12s %12s %9s %8s %8s %8s\n", "label", "voxels", "image mm3", "mesh mm3",
-          "error %", "img cc", "cc>=100", "mesh cc");
+  fprintf(f, "  %8s %10s %12s %12s %9s %8s %8s %8s %8s %8s\n", "label", "voxels", "image mm3", "mesh mm3",
+          "error %", "img cc", "cc>=100", "mesh cc", "large cc", "split");
   for (int i = 0; i < x->nlabels; i++) {
     const ck_label_t *L = &x->labels[i];
-    fprintf(f, "  %8lld %10lld %12.5g %12.5g %9.3f %8lld %8lld %8lld%s\n", (long long)L->value,
+    fprintf(f, "  %8lld %10lld %12.5g %12.5g %9.3f %8lld %8lld %8lld %8lld %8lld%s\n", (long long)L->value,
             (long long)L->voxels, L->image_volume, L->mesh_volume, L->rel_error_pct,
             (long long)L->image_components, (long long)L->image_components_100,
-            (long long)L->mesh_components, L->in_mesh ? "" : "  MISSING");
+            (long long)L->mesh_components, (long long)L->large_components, (long long)L->split_components,
+            L->in_mesh ? "" : "  MISSING");
   }
 }
 

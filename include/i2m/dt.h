@@ -104,6 +104,23 @@ typedef struct {
   uint32_t vfresh_next, vfresh_end;               /* reserved range of fresh vertex slots */
 } i2m_dt_slots_t;
 
+/** The cells of a uniform grid over a box (the octree leaves that the dist layer and the
+ *  deterministic mode cut the labelled block into): the cell of a point is
+ *  floor((x - origin) * inv_side) along each axis, clamped to [0, n - 1] (NaN: 0).  A tet's
+ *  cell is its centroid's, summed in its own vertex order: every rank and thread files a tet
+ *  in the same cell, and a test on a neighbour of a cavity (i2m_dt_block_t) agrees with it. */
+typedef struct {
+  double origin[3], inv_side[3];
+  int32_t n[3];
+} i2m_dt_cells_t;
+
+/** A block of cells, lo[a] <= cell[a] <= hi[a] (a subregion and its buffer zone): every tet an
+ *  operation reads as a neighbour of what it changes must lie in it. */
+typedef struct {
+  i2m_dt_cells_t cells;
+  int32_t lo[3], hi[3];
+} i2m_dt_block_t;
+
 /** Per-thread context: scratch space, locks held, free-slot pool, statistics. */
 typedef struct i2m_dt_ctx {
   i2m_dt_t *dt;            /**< borrowed */
@@ -115,6 +132,9 @@ typedef struct i2m_dt_ctx {
                                 deterministic mode: threads work in zones that never meet) */
   bool bounded;            /**< slots only from ctx->slots: when they run out, I2M_DT_FULL (the
                                 deterministic mode: a tile's operations never touch shared capacity) */
+  const i2m_dt_block_t *block; /**< borrowed, or NULL (only with a zone): the cells the tets next to an
+                                operation's cavity or star must lie in, else I2M_DT_FROZEN (a task
+                                of the dist layer holds these cells' tets and no others) */
   /* scratch (owned, grown as needed: private to the context) */
   uint32_t *cav; uint32_t ncav, cap_cav;          /* cavity / star tets */
   i2m_dt_bface_t *bnd; uint32_t nbnd, cap_bnd;    /* cavity boundary faces */
@@ -153,11 +173,14 @@ void i2m_dt_ctx_flush(i2m_dt_ctx_t *ctx);
 i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t gid, uint8_t kind,
                               uint32_t seed, uint32_t seed_meta, uint32_t *vout);
 
-/** Finds a tet containing p by a visibility walk from @p start (sequential use). */
+/** Finds a tet containing p by a visibility walk from @p start (sequential use, or a zone's
+ *  with a block: I2M_DT_NONE when the walk would leave the block; faces of another rank's
+ *  are closed). */
 uint32_t i2m_dt_locate(i2m_dt_ctx_t *ctx, const double p[3], uint32_t start);
 
 /** Inserts p after locating it from @p start (sequential use).  Duplicate points return
- *  I2M_DT_DUPLICATE and change nothing. */
+ *  I2M_DT_DUPLICATE and change nothing; a walk that would leave the context's block,
+ *  I2M_DT_FROZEN. */
 i2m_dt_status_t i2m_dt_insert_walk(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t gid,
                                    uint8_t kind, uint32_t start, uint32_t *vout);
 
@@ -224,6 +247,40 @@ static inline uint32_t i2m_dt_ntets_slots(const i2m_dt_t *dt)
   return atomic_load_explicit(&dt->nt_atomic, memory_order_relaxed);
 }
 static inline void *i2m_dt_payload(const i2m_dt_t *dt, uint32_t t) { return dt->tpay + dt->pay_size * t; }
+
+/** Tet t's centroid, summed in its vertex order. */
+static inline void i2m_dt_centroid(const i2m_dt_t *dt, uint32_t t, double c[3])
+{
+  const uint32_t *v = dt->tv + 4 * (size_t)t;
+  c[0] = c[1] = c[2] = 0.0;
+  for (int i = 0; i < 4; i++)
+    for (int a = 0; a < 3; a++) c[a] += i2m_dt_xyz(dt, v[i])[a];
+  for (int a = 0; a < 3; a++) c[a] *= 0.25;
+}
+
+/** The cell of coordinate x along axis a (clamped; NaN: 0). */
+static inline int32_t i2m_dt_cell_axis(const i2m_dt_cells_t *g, int a, double x)
+{
+  const double u = (x - g->origin[a]) * g->inv_side[a];
+  return !(u >= 0.0) ? 0 : u >= (double)g->n[a] ? g->n[a] - 1 : (int32_t)u;
+}
+
+/** The cell of tet t (its centroid's). */
+static inline void i2m_dt_tet_cell(const i2m_dt_t *dt, uint32_t t, const i2m_dt_cells_t *g, int32_t cell[3])
+{
+  double c[3];
+  i2m_dt_centroid(dt, t, c);
+  for (int a = 0; a < 3; a++) cell[a] = i2m_dt_cell_axis(g, a, c[a]);
+}
+
+/** Does the block hold tet t? */
+static inline bool i2m_dt_block_holds(const i2m_dt_t *dt, const i2m_dt_block_t *b, uint32_t t)
+{
+  int32_t c[3];
+  i2m_dt_tet_cell(dt, t, &b->cells, c);
+  return c[0] >= b->lo[0] && c[0] <= b->hi[0] && c[1] >= b->lo[1] && c[1] <= b->hi[1] && c[2] >= b->lo[2] &&
+         c[2] <= b->hi[2];
+}
 
 #ifdef __cplusplus
 }

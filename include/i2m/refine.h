@@ -165,6 +165,27 @@ void i2m_refine_tiling_bound(i2m_refine_t *r);
 /** Cuts the labelled block into tiles for the current scale and moves every queued element
  *  into its tile (workers stop taking vertex locks). */
 i2m_err_t i2m_refine_tiling_begin(i2m_refine_t *r);
+/** Sets the octree's depth (2^depth cells along each axis of the labelled block): the tiles
+ *  of i2m_refine_octree_begin, and (i2m_refine_tiling_bound) the background bound. */
+void i2m_refine_set_depth(i2m_refine_t *r, int depth);
+/** The octree's depth when none is asked for: as deep as gives @p workers (ranks x threads)
+ *  several tasks of each colour (workers <= 0: 3, the deterministic mode's, which must not
+ *  depend on them), but never cells shorter than 16 delta along an axis, and at least 1. */
+int i2m_refine_default_depth(const i2m_refine_t *r, int workers);
+/** The depth set (-1: none). */
+int i2m_refine_depth(const i2m_refine_t *r);
+/** The same as i2m_refine_tiling_begin with the octree's cells as tiles: 27 colours, each
+ *  tile's task holding the 27 cells around it (ctx->block), a wide task per tile for what its
+ *  zone cannot hold, the same global ids on every rank. */
+i2m_err_t i2m_refine_octree_begin(i2m_refine_t *r);
+/** The number of colours of the tiling's phases (8 or 27). */
+int i2m_refine_tiling_colors(const i2m_refine_t *r);
+/** Octree: the tiles whose wide task has work, in order (borrowed until the next call). */
+i2m_err_t i2m_refine_tiling_wide_tiles(i2m_refine_t *r, const uint32_t **tiles, uint32_t *ntiles);
+/** Octree: worker k runs tile id's wide task (alone: slots granted here; merge after). */
+i2m_err_t i2m_refine_tile_run_wide(i2m_refine_t *r, int k, uint32_t id);
+/** Octree: an error naming the count if elements that no task could do are still bad. */
+i2m_err_t i2m_refine_tiling_check_stuck(i2m_refine_t *r);
 /** Frees the tiles (their unused slots go back to the triangulation).  Accepts none. */
 void i2m_refine_tiling_end(i2m_refine_t *r);
 /** After a change of bounds: every tet classified again into the tiles, in three steps:
@@ -182,7 +203,8 @@ i2m_err_t i2m_refine_tiling_phase(i2m_refine_t *r, int color, const uint32_t **t
 i2m_err_t i2m_refine_tile_run(i2m_refine_t *r, int k, uint32_t id);
 /** The barrier after a phase: hand-overs reach their tiles, in an order of their own. */
 i2m_err_t i2m_refine_tiling_merge(i2m_refine_t *r);
-/** The end of a round: worker 0 does, in order, what no tile could (no zone). */
+/** The end of a round: worker 0 does, in order, what no tile could (coarse tiles: no zone;
+ *  octree: the wide tasks, one at a time). */
 i2m_err_t i2m_refine_tiling_sequential(i2m_refine_t *r);
 /** Tile side (mm), rounds and sequential operations so far (0 without a tiling). */
 void i2m_refine_tiling_figures(const i2m_refine_t *r, double *side, int64_t *rounds, int64_t *sequential_ops);

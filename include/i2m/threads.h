@@ -16,6 +16,7 @@ typedef struct {
   double coarse_factor; /**< the coarse phase uses size bounds x this factor (1: no coarse phase) */
   bool pin;             /**< bind thread k to the k-th core the process may use */
   bool deterministic;   /**< tiles instead of speculation: the same mesh on any number of threads */
+  int depth;            /**< the octree's depth (the deterministic mode's fine tiles); 0: the default */
 } i2m_threads_opts_t;
 
 /** What one thread did. */
@@ -32,7 +33,8 @@ typedef struct {
   double coarse_seconds, fine_seconds;
   int64_t pauses;                /**< capacity growths with every thread paused */
   int deterministic;             /**< 1: the deterministic mode ran (tiles) */
-  double tile_side;              /**< its tile side (mm) in the fine phase */
+  double tile_side;              /**< its tile side (mm) in the fine phase (the longest) */
+  int depth;                     /**< the octree's depth in the fine phase (0: none) */
   int64_t phases, rounds;        /**< its parallel phases and rounds */
   int64_t sequential_ops;        /**< elements its sequential passes did */
   i2m_thread_figures_t *thread;  /**< owned: [threads]; free with i2m_threads_report_free */

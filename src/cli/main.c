@@ -64,7 +64,7 @@ static i2m_err_t run_mesher(run_t *r)
 
   phase_begin(r, "refinement");
   I2M_CALL(i2m_refine_create(r->img, r->edt, &o->params, &r->ref));
-  i2m_threads_opts_t to = {o->threads, o->coarse_factor, !o->no_pin, o->deterministic != 0};
+  i2m_threads_opts_t to = {o->threads, o->coarse_factor, !o->no_pin, o->deterministic != 0, o->depth};
   I2M_CALL(i2m_threads_refine(r->ref, &to, &r->team));
   if (o->sliver_angle > 0) { /* (the rules it applies read the grids: before they go) */
     phase_end(r, I2M_PHASE_REFINE);

@@ -28,8 +28,10 @@ void cli_usage(FILE *f)
           "  --no-pin              do not bind the threads to cores\n"
           "  --sliver-angle A      after refinement, move the vertices of tets whose smallest\n"
           "                        dihedral angle is below A degrees (0-30; default 0: off)\n"
-          "  --deterministic       the same mesh whatever the number of threads (tiles refined in\n"
-          "                        turn instead of speculation with vertex locks)\n"
+          "  --deterministic       the same mesh whatever the number of threads and ranks (subregions\n"
+          "                        refined in turn instead of speculation with vertex locks)\n"
+          "  --depth D             the octree of 8^D subregions that ranks (and the deterministic\n"
+          "                        mode) refine in turn (default: from the ranks, threads and mesh size)\n"
           "  --report FILE.json    write the run report as JSON\n"
           "  --seed N              random seed (default 1)\n"
           "  --check               check the triangulation's validity before writing (slow)\n"
@@ -133,6 +135,10 @@ static i2m_err_t parse_valued(const char *opt, const char *val, cli_options_t *o
     I2M_CALL(parse_double(opt, val, &o->sliver_angle));
     I2M_CHECK(o->sliver_angle >= 0 && o->sliver_angle <= 30, I2M_ERR_ARG,
               "--sliver-angle must be between 0 and 30 degrees (got %s)", val);
+  } else if (!strcmp(opt, "--depth")) {
+    I2M_CALL(parse_int(opt, val, &iv));
+    I2M_CHECK(iv >= 1 && iv <= 6, I2M_ERR_ARG, "--depth must be between 1 and 6 (8^depth subregions; got %s)", val);
+    o->depth = (int)iv;
   } else if (!strcmp(opt, "--threads")) {
     I2M_CALL(parse_int(opt, val, &iv));
     I2M_CHECK(iv >= 1 && iv <= 4096, I2M_ERR_ARG, "--threads must be between 1 and 4096 (got %s)", val);

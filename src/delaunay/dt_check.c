@@ -9,6 +9,10 @@ static i2m_err_t check_adjacency(const i2m_dt_t *dt, uint32_t t)
   const uint32_t *v = dt->tv + 4 * (size_t)t;
   for (uint32_t i = 0; i < 4; i++) {
     uint32_t n = dt->tn[4 * t + i];
+    if (n == I2M_DT_REMOTE) { /* another rank's side: the tet must be frozen */
+      I2M_CHECK(i2m_dt_meta(dt, t) & I2M_TM_FROZEN, I2M_ERR_INTERNAL, "tet %u face %u faces another rank but is not frozen", t, i);
+      continue;
+    }
     if (n == I2M_DT_NONE) {
       int nbox = 0;
       for (uint32_t j = 0; j < 4; j++) nbox += j != i && dt->vkind[v[j]] == I2M_VK_BOX;
@@ -44,7 +48,7 @@ static i2m_err_t check_tet(const i2m_dt_t *dt, uint32_t t, bool check_delaunay)
   if (!check_delaunay) return I2M_OK;
   for (uint32_t i = 0; i < 4; i++) {
     uint32_t n = dt->tn[4 * t + i];
-    if (n == I2M_DT_NONE || (n >> 2) < t) continue; /* each face once */
+    if (n >= I2M_DT_REMOTE || (n >> 2) < t) continue; /* each face once */
     uint32_t w = dt->tv[4 * (n >> 2) + (n & 3)];
     I2M_CHECK(tet_insphere(dt, v, i2m_dt_xyz(dt, w), i2m_dt_gid(dt, w)) < 0, I2M_ERR_INTERNAL,
               "tet %u is not Delaunay: vertex %u of its neighbour across face %u is inside its circumsphere", t, w, i);

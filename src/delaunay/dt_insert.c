@@ -239,7 +239,7 @@ static I2M_INLINE void cavity_push_seed(search_t *s, uint32_t t)
                         memory_order_relaxed);
   const uint32_t *tn = s->tn + 4 * (size_t)t;
   for (int i = 0; i < 4; i++) {
-    if (tn[i] == I2M_DT_NONE) continue;
+    if (tn[i] >= I2M_DT_REMOTE) continue;
     I2M_PREFETCH(&s->meta[tn[i] >> 2]);
     I2M_PREFETCH(s->tv + 4 * (size_t)(tn[i] >> 2));
   }
@@ -260,8 +260,8 @@ static I2M_INLINE void faces_read(const search_t *s, uint32_t c, faces_t *f)
   memcpy(f->n, s->tn + 4 * (size_t)c, sizeof f->n);
   for (int i = 0; i < 4; i++) {
     const uint32_t n = f->n[i];
-    if (I2M_UNLIKELY(n == I2M_DT_NONE)) { /* box hull: nothing to read (another thread may be
-                                             rewriting whatever a stand-in index would name) */
+    if (I2M_UNLIKELY(n >= I2M_DT_REMOTE)) { /* box hull, or another rank's: nothing to read (another
+                                               thread may be rewriting whatever a stand-in index would name) */
       f->m[i] = f->w[i] = 0;
       continue;
     }
@@ -283,7 +283,9 @@ static I2M_INLINE void faces_read(const search_t *s, uint32_t c, faces_t *f)
 static I2M_INLINE i2m_dt_status_t face_measure(search_t *s, const faces_t *f, const uint32_t cl[4], uint32_t i,
                                                bool zoned, bool locking, uint32_t lw[4], double det[4])
 {
-  if (f->n[i] == I2M_DT_NONE || (f->m[i] & I2M_TM_MARK)) return I2M_DT_OK;
+  if (I2M_UNLIKELY(f->n[i] >= I2M_DT_REMOTE)) /* a face of another rank's: that side cannot be seen */
+    return f->n[i] == I2M_DT_REMOTE ? I2M_DT_FROZEN : I2M_DT_OK;
+  if (f->m[i] & I2M_TM_MARK) return I2M_DT_OK;
   if (zoned && I2M_UNLIKELY(!zone_holds(s->ctx, f->w[i])) && (local_owner(s, f->w[i]) != s->owner)) {
     /* zone mode: a vertex outside the zone may be read, not numbered; its sign is decided now */
     lw[i] = I2M_DT_NONE;
@@ -295,6 +297,15 @@ static I2M_INLINE i2m_dt_status_t face_measure(search_t *s, const faces_t *f, co
   lw[i] = (uint32_t)l;
   det[i] = det_across(s, cl, i, (uint32_t)l);
   return I2M_DT_OK;
+}
+
+/* Zone mode: may tet u, whose apex lies outside the zone, border the cavity (lie in the
+ * context's block, if it has one)?  The refill rewrites one of its neighbour words, and a task
+ * of the dist layer holds only its block's tets. */
+static I2M_INLINE bool outside_fits(const search_t *s, uint32_t u)
+{
+  const i2m_dt_block_t *b = s->ctx->block;
+  return !b || i2m_dt_block_holds(s->ctx->dt, b, u);
 }
 
 static I2M_INLINE i2m_dt_status_t face_decide(search_t *s, uint32_t k, const faces_t *f, const uint32_t cl[4],
@@ -311,6 +322,7 @@ static I2M_INLINE i2m_dt_status_t face_decide(search_t *s, uint32_t k, const fac
       s->ctx->conflict_owner = 0;
       return I2M_DT_ROLLBACK;
     }
+    if (!outside_fits(s, n >> 2)) return I2M_DT_FROZEN;
     boundary_push(s, k << 2 | i, n);
     return I2M_DT_OK;
   }
@@ -318,6 +330,7 @@ static I2M_INLINE i2m_dt_status_t face_decide(search_t *s, uint32_t k, const fac
   if (I2M_UNLIKELY(!(fabs(det) > s->bound)) && row_is_origin(s, lw)) return I2M_DT_DUPLICATE;
   const uint32_t join = sign_across(s, cl, i, lw, det) < 0, u = n >> 2;
   if (I2M_UNLIKELY(join & ((m & I2M_TM_FROZEN) != 0))) return I2M_DT_FROZEN;
+  /* (a numbered apex lies in the zone: so do u's four vertices, its centroid, and its block) */
   /* Both outcomes are written and the counts advance by the one taken: the outcome is a coin
    * toss for the branch predictor.  Room for one more of each was made (search_room). */
   I2M_PREFETCH_WRITE((const void *)&s->tn[n]); /* a boundary face: the refill links the outside tet back */
@@ -334,12 +347,12 @@ static I2M_INLINE i2m_dt_status_t faces_visit(search_t *s, uint32_t k, const fac
 {
   uint32_t lw[4] = {0, 0, 0, 0};
   double det[4] = {0, 0, 0, 0};
-  if (face_measure(s, f, cl, 0, zoned, locking, lw, det) != I2M_DT_OK ||
-      face_measure(s, f, cl, 1, zoned, locking, lw, det) != I2M_DT_OK ||
-      face_measure(s, f, cl, 2, zoned, locking, lw, det) != I2M_DT_OK ||
-      face_measure(s, f, cl, 3, zoned, locking, lw, det) != I2M_DT_OK)
-    return I2M_DT_ROLLBACK;
   i2m_dt_status_t st;
+  if ((st = face_measure(s, f, cl, 0, zoned, locking, lw, det)) != I2M_DT_OK ||
+      (st = face_measure(s, f, cl, 1, zoned, locking, lw, det)) != I2M_DT_OK ||
+      (st = face_measure(s, f, cl, 2, zoned, locking, lw, det)) != I2M_DT_OK ||
+      (st = face_measure(s, f, cl, 3, zoned, locking, lw, det)) != I2M_DT_OK)
+    return st;
   if ((st = face_decide(s, k, f, cl, 0, lw[0], det[0], zoned)) != I2M_DT_OK) return st;
   if ((st = face_decide(s, k, f, cl, 1, lw[1], det[1], zoned)) != I2M_DT_OK) return st;
   if ((st = face_decide(s, k, f, cl, 2, lw[2], det[2], zoned)) != I2M_DT_OK) return st;
@@ -353,7 +366,7 @@ static I2M_INLINE void prefetch_apexes(const search_t *s, uint32_t t)
 {
   const uint32_t *tn = s->tn + 4 * (size_t)t;
   for (int i = 0; i < 4; i++) {
-    if (tn[i] == I2M_DT_NONE) continue;
+    if (tn[i] >= I2M_DT_REMOTE) continue;
     const uint32_t w = s->tv[tn[i]]; /* 4u + j: vertex j of neighbour u, its apex */
     I2M_PREFETCH(&s->vlock[w]);
     I2M_PREFETCH(s->xyzw + 4 * (size_t)w);
@@ -454,7 +467,7 @@ static I2M_INLINE uint32_t fill_tet(const fill_t *f, uint32_t k, i2m_dt_bface_t 
   const uint32_t w[4] = {f->held[l[0]], f->held[l[1]], f->held[l[2]], v};
   memcpy(f->tv + 4 * (size_t)t, w, sizeof w);
   f->tn[4 * (size_t)t + 3] = b.out;
-  if (b.out != I2M_DT_NONE) f->tn[b.out] = 4 * t + 3;
+  if (b.out < I2M_DT_REMOTE) f->tn[b.out] = 4 * t + 3;
   f->vtet[w[0]] = f->vtet[w[1]] = f->vtet[w[2]] = t; /* (v's is set once the refill ends) */
   return t;
 }
@@ -695,7 +708,7 @@ static I2M_NOINLINE uint32_t walk_step_exact(const i2m_dt_t *dt, uint32_t t, uin
   for (uint32_t k = 0; k < 4; k++) {
     uint32_t i = (r + k) & 3;
     uint32_t n = dt->tn[4 * t + i];
-    if (n == I2M_DT_NONE || (n >> 2) == prev) continue;
+    if (n >= I2M_DT_REMOTE || (n >> 2) == prev) continue;
     if (beyond_face(dt, v, i, p, o[i], bound)) return n >> 2;
   }
   return I2M_DT_NONE;
@@ -716,7 +729,7 @@ uint32_t i2m_dt_locate(i2m_dt_ctx_t *ctx, const double p[3], uint32_t start)
     const uint32_t r = rng_next(&rng);
     uint32_t open = 0, beyond = 0, unsure = 0;
     for (uint32_t i = 0; i < 4; i++) {
-      open |= (uint32_t)((tn[i] != I2M_DT_NONE) & ((tn[i] >> 2) != prev)) << i;
+      open |= (uint32_t)((tn[i] < I2M_DT_REMOTE) & ((tn[i] >> 2) != prev)) << i;
       beyond |= (uint32_t)(o[i] < -bound) << i;
       unsure |= (uint32_t)(fabs(o[i]) <= bound) << i;
     }
@@ -729,6 +742,7 @@ uint32_t i2m_dt_locate(i2m_dt_ctx_t *ctx, const double p[3], uint32_t start)
     }
     ctx->n_walk_steps++;
     if (next == I2M_DT_NONE) return t;
+    if (ctx->block && !i2m_dt_block_holds(dt, ctx->block, next)) return I2M_DT_NONE; /* (a task holds its block only) */
     prev = t;
     t = next;
   }
@@ -738,5 +752,6 @@ i2m_dt_status_t i2m_dt_insert_walk(i2m_dt_ctx_t *ctx, const double p[3], i2m_gid
                                    uint32_t start, uint32_t *vout)
 {
   uint32_t t = i2m_dt_locate(ctx, p, start);
+  if (t == I2M_DT_NONE) return I2M_DT_FROZEN;
   return i2m_dt_insert(ctx, p, gid, kind, t, I2M_DT_NONE, vout);
 }

@@ -167,8 +167,13 @@ static i2m_dt_status_t star_collect(i2m_dt_ctx_t *ctx, uint32_t v)
     if (!ctx_claim_tet(ctx, tv)) return I2M_DT_ROLLBACK;
     if (i2m_dt_meta(dt, t) & I2M_TM_FROZEN) return I2M_DT_FROZEN;
     for (uint32_t i = 0; i < 4; i++) {
-      if (tv[i] == v) continue; /* the face opposite v is a link face */
-      uint32_t u = dt->tn[4 * t + i] >> 2;
+      const uint32_t n = dt->tn[4 * t + i];
+      if (n == I2M_DT_REMOTE) return I2M_DT_FROZEN; /* (another rank's side cannot be seen) */
+      if (tv[i] == v) { /* the face opposite v is a link face: the tet across it is rewritten */
+        if (ctx->block && n != I2M_DT_NONE && !i2m_dt_block_holds(dt, ctx->block, n >> 2)) return I2M_DT_FROZEN;
+        continue;
+      }
+      uint32_t u = n >> 2;
       if (i2m_dt_meta(dt, u) & I2M_TM_MARK) continue;
       if (ctx_cavity_room(ctx, ctx->ncav + 1) != I2M_OK) return I2M_DT_FULL;
       ctx->cav[ctx->ncav++] = u;
@@ -318,7 +323,7 @@ static i2m_dt_status_t fill_commit(i2m_dt_ctx_t *ctx, struct i2m_dt_removal *rm,
       const link_face_t *f = &rm->lf[lf_slot(rm, key)];
       if (f->used == rm->lfstamp) { /* glue to the outside */
         dt->tn[4 * t + i] = f->out;
-        if (f->out != I2M_DT_NONE) dt->tn[f->out] = 4 * t + i;
+        if (f->out < I2M_DT_REMOTE) dt->tn[f->out] = 4 * t + i;
       } else {
         uint32_t n = loc->tn[4 * lt + i];
         dt->tn[4 * t + i] = 4 * rm->slot[n >> 2] + (n & 3);

@@ -212,8 +212,8 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
     json_str(f, t->binding);
     fprintf(f, ", \"capacity_pauses\": %lld, \"coarse_seconds\": %.4f, \"fine_seconds\": %.4f, ", (long long)t->pauses,
             t->coarse_seconds, t->fine_seconds);
-    fprintf(f, "\"deterministic\": %s, \"tile_mm\": %.4g, \"phases\": %lld, \"rounds\": %lld, \"sequential_ops\": %lld, ",
-            t->deterministic ? "true" : "false", t->tile_side, (long long)t->phases, (long long)t->rounds,
+    fprintf(f, "\"deterministic\": %s, \"depth\": %d, \"tile_mm\": %.4g, \"phases\": %lld, \"rounds\": %lld, \"sequential_ops\": %lld, ",
+            t->deterministic ? "true" : "false", t->depth, t->tile_side, (long long)t->phases, (long long)t->rounds,
             (long long)t->sequential_ops);
     fprintf(f, "\"deferred\": %lld, \"per_thread\": [", (long long)r->stats.deferred);
     for (int k = 0; k < t->threads; k++) {

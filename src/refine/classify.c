@@ -85,13 +85,18 @@ static int volume_rule(const i2m_refine_t *r, const tet_geom_t *ti)
   return ti->r2 > size * size ? 4 : 3;
 }
 
-/* A restricted facet (face i of t) that R6 (returns 6) or R5 (returns 5) wants refined. */
-static int facet_bad(const i2m_refine_t *r, uint32_t t, uint32_t i)
+/* A restricted facet (face i of t) that R6 (returns 6) or R5 (returns 5) wants refined; -1
+ * when the tet across it cannot be read here (another rank's, or outside the cells of the
+ * worker's task: the facet is judged where both sides are held). */
+static int facet_bad(const i2m_refine_worker_t *wk, uint32_t t, uint32_t i)
 {
+  const i2m_refine_t *r = wk->r;
   const i2m_dt_t *dt = r->dt;
   uint32_t n = dt->tn[4 * t + i];
   if (n == I2M_DT_NONE) return 0; /* the box hull: far from the image */
-  if (tinfo(dt, n >> 2)->label == tinfo(dt, t)->label) return 0;
+  if (n == I2M_DT_REMOTE) return -1;
+  if (tinfo(dt, n >> 2)->label == tinfo(dt, t)->label) return 0; /* (a neighbour of a zone's tet is nobody else's) */
+  if (wk->ctx.block && !i2m_dt_block_holds(dt, wk->ctx.block, n >> 2)) return -1;
   const uint32_t *v = dt->tv + 4 * (size_t)t;
   const double *p[3];
   int k = 0;
@@ -127,13 +132,15 @@ static bool ball_meets_interface(const tet_geom_t *ti, double z[3], uint32_t *pa
   return *d2 <= ti->r2;
 }
 
-/* Deterministic mode: a tet of any label whose centre lies in the labelled block and whose
- * radius exceeds the background bound (so that every cavity fits a tile's zone). */
+/* Tiles: a tet of any label whose centre lies in the labelled block, or in a shell around it
+ * (so that no huge tet outside borders a cavity of the block), and whose radius exceeds the
+ * background bound (so that every cavity fits a tile's zone). */
 static bool too_big(const i2m_refine_t *r, const tet_geom_t *ti)
 {
   if (!(ti->r2 > r->background_size2)) return false;
   for (int a = 0; a < 3; a++)
-    if (!(ti->cc[a] >= r->block_lo[a] && ti->cc[a] <= r->block_hi[a])) return false;
+    if (!(ti->cc[a] >= r->block_lo[a] - r->background_shell && ti->cc[a] <= r->block_hi[a] + r->background_shell))
+      return false;
   return true;
 }
 
@@ -167,7 +174,7 @@ int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *ti)
     if (ti->r2 >= r->four_delta2 && in_box(r->dt, ti->cc)) return LEVEL_R2;
   }
   for (uint32_t i = 0; i < 4; i++)
-    if (facet_bad(r, t, i)) return LEVEL_SURFACE;
+    if (facet_bad(w, t, i)) return LEVEL_SURFACE; /* (-1: perhaps; judged when popped) */
   if (ti->label != 0 && in_box(r->dt, ti->cc) && volume_bad(r, t, ti)) return LEVEL_VOLUME;
   return -1;
 }
@@ -234,7 +241,8 @@ int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t sk
     return 1;
   }
   for (uint32_t i = 0; i < 4 && !(skip & (1u << 5 | 1u << 6)); i++) { /* R5, R6 */
-    int rule = facet_bad(r, t, i);
+    int rule = facet_bad(w, t, i);
+    if (rule < 0) return -1; /* where both sides are held */
     if (!rule) continue;
     if (facet_action(r, t, i, a)) {
       a->kind = I2M_VK_SURFACE;

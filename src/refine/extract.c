@@ -12,7 +12,7 @@ static const int FACE_OUT[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
 static int64_t neighbour_label(const i2m_refine_t *r, uint32_t t, int i)
 {
   uint32_t n = r->dt->tn[4 * t + i];
-  return n == I2M_DT_NONE ? 0 : r->img->label_value[tinfo(r->dt, n >> 2)->label];
+  return n >= I2M_DT_REMOTE ? 0 : r->img->label_value[tinfo(r->dt, n >> 2)->label];
 }
 
 /* The tet slots are cut into EXTRACT_CHUNKS fixed chunks: counted in parallel, offsets by

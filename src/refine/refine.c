@@ -4,6 +4,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#define DEPTH_MIN_DELTAS 16.0   /* the octree's cells are at least this many delta on a side */
+#define DEPTH_MAX 6             /* 2^18 cells at most */
+#define DEPTH_DETERMINISTIC 3   /* the deterministic mode's depth, whatever the threads and ranks */
+
 void i2m_refine_params_default(i2m_refine_params_t *p)
 {
   memset(p, 0, sizeof *p);
@@ -99,6 +103,7 @@ i2m_err_t i2m_refine_create(const i2m_image_t *img, const i2m_edt_t *edt, const 
   r->p = *params;
   atomic_init(&r->next_gid, 8);
   r->background_size2 = INFINITY;
+  r->octree_depth = -1;
   I2M_CALL_GOTO(err, fail, setup_bounds(r));
   /* the virtual box: the image block (world) grown by its largest extent on every side */
   double lo[3], hi[3], ext = 0;
@@ -328,6 +333,22 @@ i2m_err_t i2m_refine_grow(i2m_refine_t *r)
   I2M_CALL(vgrid_reserve(&r->freev, dt->cap_v));
   return I2M_OK;
 }
+
+int i2m_refine_default_depth(const i2m_refine_t *r, int workers)
+{
+  double ext = INFINITY;
+  for (int a = 0; a < 3; a++) ext = fmin(ext, r->block_hi[a] - r->block_lo[a]);
+  int size_depth = 0; /* cells of at least DEPTH_MIN_DELTAS delta along every axis */
+  while (size_depth < DEPTH_MAX && ext / (double)(2 << size_depth) >= DEPTH_MIN_DELTAS * r->p.delta) size_depth++;
+  int want = DEPTH_DETERMINISTIC;
+  if (workers > 0) /* enough tasks of each colour for every worker, several times over */
+    for (want = 1; want < DEPTH_MAX && ((int64_t)1 << (3 * want)) < 27 * 4 * (int64_t)workers; want++) {
+    }
+  const int d = want < size_depth ? want : size_depth;
+  return d < 1 ? 1 : d;
+}
+
+int i2m_refine_depth(const i2m_refine_t *r) { return r->octree_depth; }
 
 void i2m_refine_set_scale(i2m_refine_t *r, double f)
 {

@@ -143,38 +143,57 @@ i2m_err_t pieces_splits(const i2m_refine_t *r, const pieces_t *P, int64_t min_vo
 void splits_free(split_t **s, size_t n);
 double pieces_tet_volume(const i2m_dt_t *dt, uint32_t t);
 
-/* ---- the deterministic mode (tiles.c) ---- */
+/* ---- tiles (tiles.c): the deterministic mode's, and the octree subregions of the dist layer
+ * (which the deterministic mode's fine phase shares, so that one process and many ranks make
+ * the same mesh) ---- */
 
 #define TILE_NONE UINT32_MAX
 
-/** An element handed over at the next barrier: to another tile, or to the sequential pass
- *  (to = TILE_NONE).  (from, seq) orders the hand-overs independently of the threads. */
+/** Where a hand-over goes at its target tile. */
+enum { HAND_QUEUE = 0, HAND_WIDE = 1, HAND_STUCK = 2 };
+
+/** An element handed over at the next barrier: to a tile's lists (to; where: HAND_QUEUE), to
+ *  the sequential pass (to = TILE_NONE, coarse tiles), to its tile's wide task (HAND_WIDE:
+ *  octree, it could not be done inside the zone) or to the elements no task could do
+ *  (HAND_STUCK: deferred by a wide task).  (from, seq) orders the hand-overs independently of
+ *  the threads and ranks. */
 typedef struct {
   uint32_t to, from;
   uint64_t seq;
   int32_t level;  /* the bad element's list, or -1: a pending removal */
   uint32_t t, meta;
   pending_t pv;
+  int32_t where;  /* HAND_* */
 } handoff_t;
 
-/** A tile of the deterministic mode: its elements, its slots, its global ids. */
+/** A tile: its elements, its slots, its global ids. */
 typedef struct {
   badlist_t q[NLEVELS];
   pending_t *pend;
   uint32_t npend, cap_pend;
+  badlist_t wq[NLEVELS]; /* octree: elements its task could not do inside the zone: its wide task's */
+  pending_t *wpend;
+  uint32_t nwpend, cap_wpend;
   i2m_dt_slots_t slots;
   i2m_gidx_t gid_next;
   uint64_t seq;       /* hand-overs made so far */
   double zone[6];     /* lo, hi (world): the tile grown by the margin */
+  double wzone[6];    /* octree: the wide task's zone (grown by three margins) */
+  i2m_dt_block_t block, wblock; /* octree: the cells its task (its wide task) holds: 3^3 (5^3) */
   uint32_t grant;     /* tets granted per queued element in a phase (doubles when they run out) */
 } tile_t;
 
 typedef struct {
-  double origin[3], side, margin;
-  uint32_t n[3], ntiles;
+  bool octree;                  /* the octree subregions (else the deterministic mode's coarse tiles) */
+  int period;                   /* colours: period^3 (2: zones of one colour never meet; 3: blocks) */
+  i2m_dt_cells_t cells;         /* the tiles' geometry */
+  double side[3], margin[3];
+  uint32_t ntiles;
   tile_t *tile;                 /* owned: [ntiles] */
-  handoff_t *seq;               /* owned: the sequential pass's elements, in order */
+  handoff_t *seq;               /* owned: the sequential pass's elements, in order (coarse tiles) */
   size_t nseq, cap_seq;
+  handoff_t *stuck;             /* owned: elements a wide task could not do either (octree) */
+  size_t nstuck, cap_stuck;
   handoff_t *merge;             /* owned: scratch of the barrier */
   size_t cap_merge;
   uint32_t *active;             /* owned: [ntiles] the tiles of a phase */
@@ -182,7 +201,7 @@ typedef struct {
   uint64_t *order;              /* owned: [ntiles] scratch: (less work, tile) keys */
   int8_t *level;                /* owned: [slots] reclassification: each tet's list (-1: none) */
   i2m_gidx_t gid_base;          /* ids of this tiling: gid_base + tile << 36 + k */
-  int64_t rounds, sequential_ops;
+  int64_t rounds, sequential_ops, wide_tasks;
 } tiling_t;
 
 struct i2m_refine_worker {
@@ -202,6 +221,7 @@ struct i2m_refine_worker {
   tile_t *tile;         /* deterministic mode: the tile it works on (NULL: none, or the sequential pass) */
   uint32_t tile_id;
   bool tile_full;       /* the tile's slots ran out: stop until the next phase */
+  bool tile_wide;       /* it runs the tile's wide task (what it cannot do is stuck) */
   handoff_t *out;       /* this phase's hand-overs */
   size_t nout, cap_out;
   char pad_back[64];
@@ -218,6 +238,7 @@ struct i2m_refine {
   double bisect_tol;      /* bisection tolerance (mm) */
   double min_spacing;
   double size_scale;      /* multiplies delta and every size bound (coarse phase: > 1) */
+  double background_shell; /* ... or in the shell of this thickness around it (mm) */
   double background_size2; /* deterministic mode: squared radius above which any tet centred in
                               the labelled block is split (INFINITY: none) */
   double *label_size;     /* owned: [nlabels] size bound per label index (INFINITY: none) */
@@ -226,6 +247,7 @@ struct i2m_refine {
   vgrid_t freev;          /* free vertices within 2 delta of an interface (R7) */
   _Atomic int64_t next_gid;
   tiling_t *tiling;       /* owned: the deterministic mode's tiles, or NULL */
+  int octree_depth;       /* the octree's depth (2^depth cells along each axis), -1: none set */
   double block_lo[3], block_hi[3]; /* the labelled block (world): where surface points lie */
   int tilings_made;       /* (each tiling has its own range of global ids) */
   i2m_refine_worker_t *workers; /* owned: [nworkers] */
@@ -302,13 +324,15 @@ void badlist_free(badlist_t *q);
  *  the worker's own lists. */
 i2m_err_t tiles_route(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t meta, bool *taken);
 /** Deterministic mode: the element cannot be done in the tile's zone: the sequential pass
- *  will do it (level -1: the pending removal pv). */
+ *  (coarse tiles), the tile's wide task (octree) or nobody (a wide task's) will do it
+ *  (level -1: the pending removal pv). */
 i2m_err_t tiles_defer(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t meta, pending_t pv);
 /** The tile that holds tet t's centroid, and a tile's colour (0..7). */
 uint32_t tiles_tile_of_tet(const i2m_refine_t *r, uint32_t t);
 int tiles_color(const tiling_t *g, uint32_t id);
-/** Worker w takes tile id's lists, slots and zone (and gives them back). */
-void tiles_bind(i2m_refine_worker_t *w, uint32_t id);
+/** Worker w takes tile id's lists (its wide lists, wide), slots, zone and block (and gives
+ *  them back). */
+void tiles_bind(i2m_refine_worker_t *w, uint32_t id, bool wide);
 void tiles_unbind(i2m_refine_worker_t *w);
 /** Is world point x in the zone of the worker's tile (always, without a tile)? */
 bool tiles_zone_holds(const i2m_refine_worker_t *w, const double x[3]);

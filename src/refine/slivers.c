@@ -138,7 +138,7 @@ static i2m_err_t star_of(perturb_t *P, uint32_t v)
     for (uint32_t i = 0; i < 4; i++) {
       if (tv[i] == v) continue; /* the face opposite v does not hold it */
       const uint32_t n = dt->tn[4 * (size_t)t + i];
-      if (n == I2M_DT_NONE) continue;
+      if (n >= I2M_DT_REMOTE) continue; /* (never for a face that holds v: see take_out) */
       const uint32_t u = n >> 2;
       bool seen = false;
       for (uint32_t q = 0; q < P->nstar && !seen; q++) seen = P->star[q] == u;
@@ -209,7 +209,8 @@ static uint32_t locate_near(const i2m_refine_worker_t *w, uint32_t t, const doub
     }
     if (beyond < 0) return t;
     const uint32_t n = dt->tn[4 * (size_t)t + (uint32_t)beyond];
-    if (n == I2M_DT_NONE || !face_in_zone(w, dt, t, beyond)) return I2M_DT_NONE;
+    if (n >= I2M_DT_REMOTE || !face_in_zone(w, dt, t, beyond)) return I2M_DT_NONE;
+    if (w->ctx.block && !i2m_dt_block_holds(dt, w->ctx.block, n >> 2)) return I2M_DT_NONE;
     t = n >> 2;
   }
   return I2M_DT_NONE;
@@ -627,7 +628,7 @@ i2m_err_t i2m_refine_tile_slivers(i2m_refine_t *r, int k, uint32_t id)
   struct sliver_pass *S = r->slivers;
   perturb_t *P = &S->per[k];
   P->rng = rng_seed(r, S->round, id);
-  tiles_bind(P->w, id);
+  tiles_bind(P->w, id, false);
   i2m_err_t err = treat_all(P, S->by_tile + S->first[id], S->first[id + 1] - S->first[id]);
   tiles_unbind(P->w);
   return err;
@@ -687,7 +688,7 @@ i2m_err_t i2m_refine_perturb_slivers(i2m_refine_t *r, double bound, i2m_sliver_s
   I2M_CALL(i2m_refine_slivers_begin(r, bound));
   i2m_err_t err = I2M_OK;
   while (err == I2M_OK && i2m_refine_slivers_has_work(r)) {
-    for (int color = 0; color < 8 && err == I2M_OK; color++) {
+    for (int color = 0; color < i2m_refine_tiling_colors(r) && err == I2M_OK; color++) {
       const uint32_t *tiles;
       uint32_t n;
       err = i2m_refine_slivers_phase(r, color, &tiles, &n);

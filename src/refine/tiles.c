@@ -1,97 +1,118 @@
-/* Refine layer: the deterministic mode, which gives the same mesh whatever the number of
- * threads.
+/* Refine layer: tiles, the units of work of the deterministic mode and of the dist layer.
  *
- * The labelled block is cut into tiles of side L (at least 24 delta); a tile's zone is the
- * tile grown by a margin L/2 - 1.01 delta, so that the zones of two tiles of the same colour
- * (the parities of the tile coordinates) stay more than 2 delta apart.  In a phase, the
- * tiles of one colour with work are refined at the same time, each by one thread, and each
- * operation touches only vertices of its tile's zone (the kernel's lock hook checks that);
- * nothing a thread reads can change meanwhile: the mesh there is its alone, and the grids
- * of surface and free vertices only change farther away than R1 and R7 look.  Every bad
- * element lives in the tile that holds its centroid; an element created for another tile is
- * handed over at the next barrier, in the order (target, source, rank at the source), and
- * one that cannot be done inside a zone (a large cavity, a walk) goes to the sequential pass
- * that ends each round.  A tile's slots and global ids are its own.  So every decision
- * depends on the tiles' contents only, never on which thread ran which tile, or when. */
+ * The labelled block is cut into tiles, each with a zone (the tile grown by a margin): an
+ * operation of a tile's task touches only vertices of its zone (the kernel's lock hook checks
+ * that).  Every bad element lives in the tile that holds its tet's centroid; an element created
+ * for another tile is handed over at the next barrier, in the order (target, source, rank at
+ * the source), and one that cannot be done inside the zone (a large cavity, a walk) waits for
+ * a wider treatment.  A tile's slots and global ids are its own.  So every decision depends
+ * on the tiles' contents only, never on which thread (or rank) ran which tile, or when.
+ *
+ * Two tilings share this code:
+ * - the coarse tiles of the deterministic mode's coarse phase: cubes of side L (at least 48
+ *   delta), zones grown by L/2 - 1.01 delta, 8 colours (the parities of the tile
+ *   coordinates: zones of one colour stay more than 2 delta apart, as R7 looks that far); what
+ *   no zone holds goes to a sequential pass at the end of each round;
+ * - the octree subregions (the paper's uniform octree of 8^d leaves over the labelled block),
+ *   used by the fine phase of the deterministic mode and by every phase of the dist layer: a
+ *   tile's task may also read only the tets of its block (its cell and the 26 around it: the
+ *   cells a rank holds for the task), zones are grown by half a cell, 27 colours (the
+ *   coordinates modulo 3: blocks of one colour never meet, so tasks of one colour run on
+ *   different ranks without exchanging anything), and what no zone holds goes to the tile's
+ *   wide task (zone grown by a cell and a half, block of 5^3 cells), run alone after each
+ *   round; what even that cannot do is stuck, and a run that ends with stuck elements fails. */
 #include "refine_impl.h"
 
 #include <stdlib.h>
 #include <string.h>
 
-#define TILE_MIN_DELTAS 48.0   /* tile side, in units of delta */
-#define TILES_PER_AXIS 32.0    /* at most about this many along the longest axis */
+#define TILE_MIN_DELTAS 48.0   /* coarse tiles: side, in units of delta */
+#define TILES_PER_AXIS 32.0    /* coarse tiles: at most about this many along the longest axis */
 #define TILE_GID_SHIFT 36      /* a tile's global ids: base + (tile << 36) + k */
-#define TILING_GID_SHIFT 52    /* each tiling's base: (number + 1) << 52 */
+#define TILING_GID_SHIFT 52    /* coarse tilings' bases: (number + 1) << 52 */
+#define OCTREE_GID_BASE ((i2m_gidx_t)15 << TILING_GID_SHIFT) /* the octree's: the same on every rank */
 
 /* ---- geometry ---- */
 
-static uint32_t tile_axis(const tiling_t *g, int a, double x)
+static uint32_t tile_index(const tiling_t *g, const int32_t c[3])
 {
-  double u = (x - g->origin[a]) / g->side;
-  return !(u >= 0.0) ? 0 : u >= (double)g->n[a] ? g->n[a] - 1 : (uint32_t)u;
+  return ((uint32_t)c[2] * (uint32_t)g->cells.n[1] + (uint32_t)c[1]) * (uint32_t)g->cells.n[0] + (uint32_t)c[0];
 }
 
-static uint32_t tile_of_point(const tiling_t *g, const double x[3])
+static void tile_coords(const tiling_t *g, uint32_t id, int32_t c[3])
 {
-  return (tile_axis(g, 2, x[2]) * g->n[1] + tile_axis(g, 1, x[1])) * g->n[0] + tile_axis(g, 0, x[0]);
+  c[0] = (int32_t)(id % (uint32_t)g->cells.n[0]);
+  c[1] = (int32_t)(id / (uint32_t)g->cells.n[0] % (uint32_t)g->cells.n[1]);
+  c[2] = (int32_t)(id / (uint32_t)g->cells.n[0] / (uint32_t)g->cells.n[1]);
 }
 
 /* The tile of a tet: the one that holds its centroid. */
 uint32_t tiles_tile_of_tet(const i2m_refine_t *r, uint32_t t)
 {
-  const i2m_dt_t *dt = r->dt;
-  const uint32_t *v = dt->tv + 4 * (size_t)t;
-  double c[3] = {0, 0, 0};
-  for (int i = 0; i < 4; i++)
-    for (int a = 0; a < 3; a++) c[a] += i2m_dt_xyz(dt, v[i])[a];
-  for (int a = 0; a < 3; a++) c[a] *= 0.25;
-  return tile_of_point(r->tiling, c);
+  int32_t c[3];
+  i2m_dt_tet_cell(r->dt, t, &r->tiling->cells, c);
+  return tile_index(r->tiling, c);
 }
 
 int tiles_color(const tiling_t *g, uint32_t id)
 {
-  uint32_t i = id % g->n[0], j = id / g->n[0] % g->n[1], k = id / g->n[0] / g->n[1];
-  return (int)((i & 1) | (j & 1) << 1 | (k & 1) << 2);
+  int32_t c[3];
+  tile_coords(g, id, c);
+  const int p = g->period;
+  return c[0] % p + p * (c[1] % p) + p * p * (c[2] % p);
 }
 
-static bool zone_fits_tet(const tile_t *tl, const i2m_dt_t *dt, uint32_t t)
+static bool zone_fits_tet(const double zone[6], const i2m_dt_t *dt, uint32_t t)
 {
   const uint32_t *v = dt->tv + 4 * (size_t)t;
   for (int i = 0; i < 4; i++)
-    if (!i2m_box_holds(tl->zone, i2m_dt_xyz(dt, v[i]))) return false;
+    if (!i2m_box_holds(zone, i2m_dt_xyz(dt, v[i]))) return false;
   return true;
 }
 
 bool tiles_zone_holds(const i2m_refine_worker_t *w, const double x[3])
 {
-  return !w->tile || i2m_box_holds(w->tile->zone, x);
+  return !w->tile || i2m_box_holds(w->ctx.zone, x);
 }
 
 bool tiles_ball_fits(const i2m_refine_worker_t *w, const double c[3], double r2)
 {
   if (!w->tile) return true;
   if (!isfinite(r2)) return false;
-  const double *z = w->tile->zone, r = sqrt(r2);
+  const double *z = w->ctx.zone, r = sqrt(r2);
   for (int a = 0; a < 3; a++)
     if (!(c[a] - r >= z[a] && c[a] + r <= z[3 + a])) return false;
   return true;
 }
 
-static size_t tile_work(const tile_t *tl)
+static size_t lists_work(const badlist_t *q, uint32_t npend)
 {
-  size_t n = tl->npend;
-  for (int l = 0; l < NLEVELS; l++) n += tl->q[l].n;
+  size_t n = npend;
+  for (int l = 0; l < NLEVELS; l++) n += q[l].n;
   return n;
 }
 
-static bool tile_has_work(const tile_t *tl) { return tile_work(tl) != 0; }
+static size_t tile_work(const tile_t *tl) { return lists_work(tl->q, tl->npend); }
+static size_t tile_wide_work(const tile_t *tl) { return lists_work(tl->wq, tl->nwpend); }
 
 /* ---- queues ---- */
 
-static i2m_err_t tile_push(i2m_refine_t *r, uint32_t id, int level, uint32_t t, uint32_t meta)
+static i2m_err_t tile_push(i2m_refine_t *r, uint32_t id, int level, uint32_t t, uint32_t meta, bool wide)
 {
   bad_t b = {t, meta, {0, 0, 0, 0}}; /* tile lists are narrow: the vertices are read when popped */
-  return badlist_push(&r->tiling->tile[id].q[level], r->dt, &b);
+  tile_t *tl = &r->tiling->tile[id];
+  return badlist_push(wide ? &tl->wq[level] : &tl->q[level], r->dt, &b);
+}
+
+static i2m_err_t pend_push(pending_t **a, uint32_t *n, uint32_t *cap, pending_t pv)
+{
+  if (*n == *cap) {
+    uint32_t c = *cap ? 2 * *cap : 64;
+    I2M_CALL(i2m_realloc(c, sizeof **a, a));
+    *cap = c;
+  }
+  (*a)[(*n)++] = pv;
+  return I2M_OK;
 }
 
 static i2m_err_t handoff_append(handoff_t **a, size_t *n, size_t *cap, handoff_t h)
@@ -111,12 +132,23 @@ static i2m_err_t seq_append(tiling_t *g, handoff_t h)
   return handoff_append(&g->seq, &g->nseq, &g->cap_seq, h);
 }
 
-/* An element for tile id from the one thread that runs (setup, barrier, sequential pass):
- * into the tile when its tet lies in the zone, else to the sequential pass. */
-static i2m_err_t place(i2m_refine_t *r, uint32_t id, handoff_t h)
+/* The element of a hand-over into its place: its tile's lists or wide lists, the sequential
+ * pass, or the stuck ones.  An element whose tet no longer fits the tile's zone cannot be
+ * done by the tile's task: the sequential pass (coarse tiles) or the wide task (octree). */
+static i2m_err_t place(i2m_refine_t *r, handoff_t h)
 {
-  if (zone_fits_tet(&r->tiling->tile[id], r->dt, h.t)) return tile_push(r, id, h.level, h.t, h.meta);
-  return seq_append(r->tiling, h);
+  tiling_t *g = r->tiling;
+  if (h.where == HAND_STUCK) return handoff_append(&g->stuck, &g->nstuck, &g->cap_stuck, h);
+  if (h.to == TILE_NONE) return seq_append(g, h);
+  tile_t *tl = &g->tile[h.to];
+  bool wide = h.where == HAND_WIDE;
+  if (h.level >= 0 && !wide && !zone_fits_tet(tl->zone, r->dt, h.t)) {
+    if (!g->octree) return seq_append(g, h);
+    wide = true;
+  }
+  if (h.level < 0) return wide ? pend_push(&tl->wpend, &tl->nwpend, &tl->cap_wpend, h.pv)
+                               : pend_push(&tl->pend, &tl->npend, &tl->cap_pend, h.pv);
+  return tile_push(r, h.to, h.level, h.t, h.meta, wide);
 }
 
 i2m_err_t tiles_route(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t meta, bool *taken)
@@ -124,66 +156,82 @@ i2m_err_t tiles_route(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t me
   i2m_refine_t *r = w->r;
   const uint32_t to = tiles_tile_of_tet(r, t);
   *taken = true;
-  if (!w->tile) return place(r, to, (handoff_t){to, TILE_NONE, 0, level, t, meta, {0, 0}}); /* one thread */
-  if (to == w->tile_id) {
+  if (!w->tile) return place(r, (handoff_t){to, TILE_NONE, 0, level, t, meta, {0, 0}, HAND_QUEUE}); /* one thread */
+  if (to == w->tile_id && !w->tile_wide) {
     *taken = false; /* its own tile: the worker's lists */
     return I2M_OK;
   }
-  return handoff_append(&w->out, &w->nout, &w->cap_out, (handoff_t){to, w->tile_id, w->tile->seq++, level, t, meta, {0, 0}});
+  return handoff_append(&w->out, &w->nout, &w->cap_out,
+                        (handoff_t){to, w->tile_id, w->tile->seq++, level, t, meta, {0, 0}, HAND_QUEUE});
 }
 
 i2m_err_t tiles_defer(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t meta, pending_t pv)
 {
-  return handoff_append(&w->out, &w->nout, &w->cap_out,
-                        (handoff_t){TILE_NONE, w->tile_id, w->tile->seq++, level, t, meta, pv});
+  const tiling_t *g = w->r->tiling;
+  const uint32_t to = g->octree ? w->tile_id : TILE_NONE;
+  const int32_t where = !g->octree ? HAND_QUEUE : w->tile_wide ? HAND_STUCK : HAND_WIDE;
+  return handoff_append(&w->out, &w->nout, &w->cap_out, (handoff_t){to, w->tile_id, w->tile->seq++, level, t, meta, pv, where});
 }
 
-/* ---- a worker on a tile: the tile's lists, slots and zone become the worker's ---- */
+/* ---- a worker on a tile: the tile's lists, slots, zone and block become the worker's ---- */
 
-static void swap_lists(i2m_refine_worker_t *w, tile_t *tl)
+static void swap_lists(i2m_refine_worker_t *w, badlist_t *q, pending_t **pend, uint32_t *npend, uint32_t *cap_pend,
+                       i2m_dt_slots_t *slots)
 {
   for (int l = 0; l < NLEVELS; l++) {
-    badlist_t q = w->q[l];
-    w->q[l] = tl->q[l];
-    tl->q[l] = q;
+    badlist_t x = w->q[l];
+    w->q[l] = q[l];
+    q[l] = x;
   }
   pending_t *p = w->pend;
   uint32_t n = w->npend, c = w->cap_pend;
-  w->pend = tl->pend;
-  w->npend = tl->npend;
-  w->cap_pend = tl->cap_pend;
-  tl->pend = p;
-  tl->npend = n;
-  tl->cap_pend = c;
+  w->pend = *pend;
+  w->npend = *npend;
+  w->cap_pend = *cap_pend;
+  *pend = p;
+  *npend = n;
+  *cap_pend = c;
   i2m_dt_slots_t s = w->ctx.slots;
-  w->ctx.slots = tl->slots;
-  tl->slots = s;
+  w->ctx.slots = *slots;
+  *slots = s;
 }
 
-void tiles_bind(i2m_refine_worker_t *w, uint32_t id)
+static void swap_tile(i2m_refine_worker_t *w, tile_t *tl, bool wide)
 {
-  tile_t *tl = &w->r->tiling->tile[id];
-  swap_lists(w, tl);
-  w->ctx.zone = tl->zone;
+  if (wide) swap_lists(w, tl->wq, &tl->wpend, &tl->nwpend, &tl->cap_wpend, &tl->slots);
+  else swap_lists(w, tl->q, &tl->pend, &tl->npend, &tl->cap_pend, &tl->slots);
+}
+
+void tiles_bind(i2m_refine_worker_t *w, uint32_t id, bool wide)
+{
+  const tiling_t *g = w->r->tiling;
+  tile_t *tl = &g->tile[id];
+  swap_tile(w, tl, wide);
+  w->ctx.zone = wide ? tl->wzone : tl->zone;
+  w->ctx.block = !g->octree ? NULL : wide ? &tl->wblock : &tl->block;
   w->ctx.bounded = true;
   w->tile = tl;
   w->tile_id = id;
   w->tile_full = false;
+  w->tile_wide = wide;
 }
 
 void tiles_unbind(i2m_refine_worker_t *w)
 {
-  swap_lists(w, w->tile);
+  swap_tile(w, w->tile, w->tile_wide);
   w->ctx.zone = NULL;
+  w->ctx.block = NULL;
   w->ctx.bounded = false;
   w->tile = NULL;
+  w->tile_wide = false;
 }
 
-i2m_err_t i2m_refine_tile_run(i2m_refine_t *r, int k, uint32_t id)
+/* Worker k on tile id (its wide task when wide) until its lists are empty or its slots run out. */
+static i2m_err_t run_tile(i2m_refine_t *r, int k, uint32_t id, bool wide)
 {
   i2m_refine_worker_t *w = &r->workers[k];
   double t0 = i2m_wtime();
-  tiles_bind(w, id);
+  tiles_bind(w, id, wide);
   int s;
   do {
     s = worker_step(w);
@@ -198,18 +246,28 @@ i2m_err_t i2m_refine_tile_run(i2m_refine_t *r, int k, uint32_t id)
   return I2M_OK;
 }
 
+i2m_err_t i2m_refine_tile_run(i2m_refine_t *r, int k, uint32_t id) { return run_tile(r, k, id, false); }
+
 /* ---- setup and teardown ---- */
+
+static void tile_free(tile_t *tl)
+{
+  for (int l = 0; l < NLEVELS; l++) {
+    badlist_free(&tl->q[l]);
+    badlist_free(&tl->wq[l]);
+  }
+  i2m_free(&tl->pend);
+  i2m_free(&tl->wpend); /* (the slots went back with i2m_dt_slots_release) */
+}
 
 static void tiling_free(tiling_t **gp)
 {
   tiling_t *g = *gp;
   if (!g) return;
-  for (uint32_t id = 0; g->tile && id < g->ntiles; id++) {
-    for (int l = 0; l < NLEVELS; l++) badlist_free(&g->tile[id].q[l]);
-    i2m_free(&g->tile[id].pend); /* (the slots went back with i2m_dt_slots_release) */
-  }
+  for (uint32_t id = 0; g->tile && id < g->ntiles; id++) tile_free(&g->tile[id]);
   i2m_free(&g->tile);
   i2m_free(&g->seq);
+  i2m_free(&g->stuck);
   i2m_free(&g->merge);
   i2m_free(&g->active);
   i2m_free(&g->order);
@@ -217,9 +275,10 @@ static void tiling_free(tiling_t **gp)
   i2m_free(gp);
 }
 
-/* Tile side (from the final delta: the coarse phase uses the same tiles) and margin (from the
- * delta in force: same-colour zones stay more than 2 delta apart, as R7 looks that far). */
-static void tile_size(const i2m_refine_t *r, double *side, double *margin)
+/* Coarse tiles: side (from the final delta: the coarse phase uses the same tiles) and margin
+ * (from the delta in force: same-colour zones stay more than 2 delta apart, as R7 looks that
+ * far). */
+static void coarse_size(const i2m_refine_t *r, double *side, double *margin)
 {
   double ext = 0;
   for (int a = 0; a < 3; a++) ext = fmax(ext, r->block_hi[a] - r->block_lo[a]);
@@ -227,38 +286,84 @@ static void tile_size(const i2m_refine_t *r, double *side, double *margin)
   *margin = 0.5 * *side - 1.01 * r->delta;
 }
 
+/* The octree's cells: 2^depth along each axis of the labelled block. */
+static void octree_cells(const i2m_refine_t *r, int depth, i2m_dt_cells_t *c, double side[3])
+{
+  for (int a = 0; a < 3; a++) {
+    c->origin[a] = r->block_lo[a];
+    c->n[a] = 1 << depth;
+    side[a] = (r->block_hi[a] - r->block_lo[a]) / (double)c->n[a];
+    c->inv_side[a] = 1.0 / side[a];
+  }
+}
+
 void i2m_refine_tiling_bound(i2m_refine_t *r)
 {
   double side, margin;
-  tile_size(r, &side, &margin);
+  coarse_size(r, &side, &margin);
   /* a cavity holds the tets whose balls hold the point: with radii below margin / 2 it stays
    * within the margin of any point of the tile (once the bound holds where the point goes) */
-  r->background_size2 = 0.25 * margin * margin;
+  double m = margin;
+  if (r->octree_depth >= 0) { /* the octree's zones are grown by half a cell */
+    i2m_dt_cells_t c;
+    double s[3];
+    octree_cells(r, r->octree_depth, &c, s);
+    for (int a = 0; a < 3; a++) m = fmin(m, 0.5 * s[a]);
+  }
+  r->background_size2 = 0.25 * m * m;
+  /* the tets around the block too, a margin deep: a Delaunay ball through a vertex of the block
+   * that reached beyond them would hold their vertices, so no tet of the virtual box's borders
+   * a cavity of the block (a cavity at the block's edge met one, whose centroid lay cells away) */
+  r->background_shell = m;
 }
 
-static i2m_err_t tiling_make(i2m_refine_t *r, tiling_t **out)
+/* The cells within `radius` of tile c (clamped to the grid: the border cells hold every tet
+ * beyond it) and the tile grown by `grow` margins. */
+static void tile_reach(const tiling_t *g, const int32_t c[3], int radius, double grow, i2m_dt_block_t *b, double zone[6])
+{
+  b->cells = g->cells;
+  for (int a = 0; a < 3; a++) {
+    b->lo[a] = c[a] - radius < 0 ? 0 : c[a] - radius;
+    b->hi[a] = c[a] + radius >= g->cells.n[a] ? g->cells.n[a] - 1 : c[a] + radius;
+    zone[a] = g->cells.origin[a] + c[a] * g->side[a] - grow * g->margin[a];
+    zone[3 + a] = g->cells.origin[a] + (c[a] + 1) * g->side[a] + grow * g->margin[a];
+  }
+}
+
+static i2m_err_t tiling_make(i2m_refine_t *r, bool octree, tiling_t **out)
 {
   tiling_t *g = NULL;
   I2M_CALL(i2m_calloc(1, sizeof *g, &g));
-  tile_size(r, &g->side, &g->margin);
-  g->ntiles = 1;
-  for (int a = 0; a < 3; a++) {
-    g->origin[a] = r->block_lo[a];
-    double n = ceil((r->block_hi[a] - r->block_lo[a]) / g->side);
-    g->n[a] = n < 1 ? 1 : (uint32_t)n;
-    g->ntiles *= g->n[a];
+  g->octree = octree;
+  if (octree) {
+    g->period = 3;
+    octree_cells(r, r->octree_depth, &g->cells, g->side);
+    for (int a = 0; a < 3; a++) g->margin[a] = 0.5 * g->side[a];
+    g->gid_base = OCTREE_GID_BASE;
+  } else {
+    double side, margin;
+    g->period = 2;
+    coarse_size(r, &side, &margin);
+    for (int a = 0; a < 3; a++) {
+      double n = ceil((r->block_hi[a] - r->block_lo[a]) / side);
+      g->cells.origin[a] = r->block_lo[a];
+      g->cells.n[a] = n < 1 ? 1 : (int32_t)n;
+      g->cells.inv_side[a] = 1.0 / side;
+      g->side[a] = side;
+      g->margin[a] = margin;
+    }
+    g->gid_base = (i2m_gidx_t)(++r->tilings_made) << TILING_GID_SHIFT;
   }
-  g->gid_base = (i2m_gidx_t)(++r->tilings_made) << TILING_GID_SHIFT;
+  g->ntiles = (uint32_t)g->cells.n[0] * (uint32_t)g->cells.n[1] * (uint32_t)g->cells.n[2];
   i2m_err_t err = i2m_calloc(g->ntiles, sizeof *g->tile, &g->tile);
   if (err == I2M_OK) err = i2m_malloc(g->ntiles, sizeof *g->active, &g->active);
   if (err == I2M_OK) err = i2m_malloc(g->ntiles, sizeof *g->order, &g->order);
   for (uint32_t id = 0; err == I2M_OK && id < g->ntiles; id++) {
     tile_t *tl = &g->tile[id];
-    uint32_t c[3] = {id % g->n[0], id / g->n[0] % g->n[1], id / g->n[0] / g->n[1]};
-    for (int a = 0; a < 3; a++) {
-      tl->zone[a] = g->origin[a] + c[a] * g->side - g->margin;
-      tl->zone[3 + a] = g->origin[a] + (c[a] + 1) * g->side + g->margin;
-    }
+    int32_t c[3];
+    tile_coords(g, id, c);
+    tile_reach(g, c, 1, 1.0, &tl->block, tl->zone);
+    tile_reach(g, c, 2, 3.0, &tl->wblock, tl->wzone);
     tl->gid_next = g->gid_base + ((i2m_gidx_t)id << TILE_GID_SHIFT);
     tl->grant = 1;
   }
@@ -277,27 +382,44 @@ static i2m_err_t adopt_worker_elements(i2m_refine_t *r)
         bad_t b;
         badlist_get(&w->q[l], r->dt, i, &b);
         if (i2m_dt_meta(r->dt, b.t) != b.meta) continue;
-        I2M_CALL(place(r, tiles_tile_of_tet(r, b.t), (handoff_t){0, TILE_NONE, 0, l, b.t, b.meta, {0, 0}}));
+        I2M_CALL(place(r, (handoff_t){tiles_tile_of_tet(r, b.t), TILE_NONE, 0, l, b.t, b.meta, {0, 0}, HAND_QUEUE}));
       }
       w->q[l].n = 0;
       I2M_CALL(badlist_set_wide(&w->q[l], r->dt, false));
     }
-    for (uint32_t i = 0; i < w->npend; i++) /* (no tile of their own: R7's candidates anywhere) */
-      I2M_CALL(seq_append(r->tiling, (handoff_t){TILE_NONE, TILE_NONE, 0, -1, 0, 0, w->pend[i]}));
+    for (uint32_t i = 0; i < w->npend; i++) { /* (no tile of their own: R7's candidates anywhere) */
+      const pending_t pv = w->pend[i];
+      if (r->tiling->octree) { /* the tile that holds the vertex */
+        if (r->dt->vkind[pv.v] != I2M_VK_FREE || i2m_dt_gid(r->dt, pv.v) != pv.gid) continue; /* gone */
+        const tiling_t *g = r->tiling;
+        const double *x = i2m_dt_xyz(r->dt, pv.v);
+        const int32_t c[3] = {i2m_dt_cell_axis(&g->cells, 0, x[0]), i2m_dt_cell_axis(&g->cells, 1, x[1]),
+                              i2m_dt_cell_axis(&g->cells, 2, x[2])};
+        I2M_CALL(place(r, (handoff_t){tile_index(g, c), TILE_NONE, 0, -1, 0, 0, pv, HAND_QUEUE}));
+      } else {
+        I2M_CALL(seq_append(r->tiling, (handoff_t){TILE_NONE, TILE_NONE, 0, -1, 0, 0, pv, HAND_QUEUE}));
+      }
+    }
     w->npend = 0;
   }
   return I2M_OK;
 }
 
-i2m_err_t i2m_refine_tiling_begin(i2m_refine_t *r)
+static i2m_err_t tiling_begin(i2m_refine_t *r, bool octree)
 {
   I2M_CHECK(!r->tiling, I2M_ERR_INTERNAL, "a tiling is already in place");
-  I2M_CALL(tiling_make(r, &r->tiling));
+  I2M_CHECK(!octree || r->octree_depth >= 0, I2M_ERR_INTERNAL, "no octree depth set");
+  I2M_CALL(tiling_make(r, octree, &r->tiling));
   for (int k = 0; k < r->nworkers; k++) r->workers[k].ctx.locking = false; /* zones instead of locks */
   i2m_err_t err = adopt_worker_elements(r);
   if (err != I2M_OK) tiling_free(&r->tiling);
   return err;
 }
+
+i2m_err_t i2m_refine_tiling_begin(i2m_refine_t *r) { return tiling_begin(r, false); }
+i2m_err_t i2m_refine_octree_begin(i2m_refine_t *r) { return tiling_begin(r, true); }
+
+void i2m_refine_set_depth(i2m_refine_t *r, int depth) { r->octree_depth = depth; }
 
 void i2m_refine_tiling_end(i2m_refine_t *r)
 {
@@ -338,7 +460,7 @@ i2m_err_t i2m_refine_tiling_collect(i2m_refine_t *r)
   i2m_err_t err = I2M_OK;
   for (uint32_t t = 0; t < nt && err == I2M_OK; t++)
     if (g->level[t] >= 0)
-      err = place(r, tiles_tile_of_tet(r, t), (handoff_t){0, TILE_NONE, 0, g->level[t], t, i2m_dt_meta(r->dt, t), {0, 0}});
+      err = place(r, (handoff_t){tiles_tile_of_tet(r, t), TILE_NONE, 0, g->level[t], t, i2m_dt_meta(r->dt, t), {0, 0}, HAND_QUEUE});
   i2m_free(&g->level);
   return err;
 }
@@ -350,8 +472,14 @@ bool i2m_refine_tiling_has_work(const i2m_refine_t *r)
   const tiling_t *g = r->tiling;
   if (g->nseq) return true;
   for (uint32_t id = 0; id < g->ntiles; id++)
-    if (tile_has_work(&g->tile[id])) return true;
+    if (tile_work(&g->tile[id]) || tile_wide_work(&g->tile[id])) return true;
   return false;
+}
+
+int i2m_refine_tiling_colors(const i2m_refine_t *r)
+{
+  const int p = r->tiling->period;
+  return p * p * p;
 }
 
 static int cmp_u64(const void *x, const void *y)
@@ -360,23 +488,48 @@ static int cmp_u64(const void *x, const void *y)
   return (a > b) - (a < b);
 }
 
+/* Drops the entries of a list whose tets changed since they were queued (most of them): the
+ * work a tile has, and the slots it is granted, then depend on its live elements only, not on
+ * the stale entries that another process's copy of the tile never received. */
+static void compact_lists(const i2m_dt_t *dt, badlist_t *q)
+{
+  for (int l = 0; l < NLEVELS; l++) {
+    size_t n = 0;
+    for (size_t i = 0; i < q[l].n; i++)
+      if (i2m_dt_meta(dt, q[l].e[i][0]) == q[l].e[i][1]) {
+        q[l].e[n][0] = q[l].e[i][0];
+        q[l].e[n][1] = q[l].e[i][1];
+        n++;
+      }
+    q[l].n = n;
+  }
+}
+
+/* Slots for a tile's work, from its live elements (it stops when they run out). */
+static i2m_err_t grant_tile(i2m_refine_t *r, tile_t *tl, size_t work)
+{
+  uint64_t want = (uint64_t)tl->grant * work / 4 + 64; /* (a fraction of the elements insert) */
+  if (want > (1u << 24)) want = 1u << 24;
+  return i2m_dt_slots_grant(r->dt, &tl->slots, (uint32_t)want, (uint32_t)(want / 4 + 64));
+}
+
 i2m_err_t i2m_refine_tiling_phase(i2m_refine_t *r, int color, const uint32_t **tiles, uint32_t *ntiles)
 {
   tiling_t *g = r->tiling;
   uint32_t n = 0;
-  for (uint32_t id = 0; id < g->ntiles; id++) /* the busiest first: key (less work, id) */
-    if (tiles_color(g, id) == color && tile_has_work(&g->tile[id])) {
-      size_t wk = tile_work(&g->tile[id]);
-      g->order[n++] = (uint64_t)(UINT32_MAX - (wk < UINT32_MAX ? wk : UINT32_MAX)) << 32 | id;
-    }
+  for (uint32_t id = 0; id < g->ntiles; id++) { /* the busiest first: key (less work, id) */
+    tile_t *tl = &g->tile[id];
+    if (tiles_color(g, id) != color || !tile_work(tl)) continue;
+    compact_lists(r->dt, tl->q);
+    const size_t wk = tile_work(tl);
+    if (wk) g->order[n++] = (uint64_t)(UINT32_MAX - (wk < UINT32_MAX ? wk : UINT32_MAX)) << 32 | id;
+  }
   if (n > 1) qsort(g->order, n, sizeof *g->order, cmp_u64);
   for (uint32_t i = 0; i < n; i++) g->active[i] = (uint32_t)g->order[i];
   g->nactive = n;
-  for (uint32_t i = 0; i < n; i++) { /* slots for the tile's work (it stops when they run out) */
+  for (uint32_t i = 0; i < n; i++) {
     tile_t *tl = &g->tile[g->active[i]];
-    uint64_t want = (uint64_t)tl->grant * tile_work(tl) / 4 + 64; /* (most queued entries are stale) */
-    if (want > (1u << 24)) want = 1u << 24;
-    I2M_CALL(i2m_dt_slots_grant(r->dt, &tl->slots, (uint32_t)want, (uint32_t)(want / 4 + 64)));
+    I2M_CALL(grant_tile(r, tl, tile_work(tl)));
   }
   I2M_CALL(vgrid_reserve(&r->surf, r->dt->cap_v)); /* nobody grows the grids while tiles run */
   I2M_CALL(vgrid_reserve(&r->freev, r->dt->cap_v));
@@ -391,6 +544,23 @@ static int cmp_handoff(const void *x, const void *y)
   if (a->to != b->to) return a->to < b->to ? -1 : 1;
   if (a->from != b->from) return a->from < b->from ? -1 : 1;
   return (a->seq > b->seq) - (a->seq < b->seq);
+}
+
+/* Empty lists of the phase's tiles keep no memory (hundreds of tiles). */
+static void trim_tile(tile_t *tl)
+{
+  for (int l = 0; l < NLEVELS; l++) {
+    if (tl->q[l].n == 0) badlist_free(&tl->q[l]);
+    if (tl->wq[l].n == 0) badlist_free(&tl->wq[l]);
+  }
+  if (tl->npend == 0) {
+    i2m_free(&tl->pend);
+    tl->cap_pend = 0;
+  }
+  if (tl->nwpend == 0) {
+    i2m_free(&tl->wpend);
+    tl->cap_wpend = 0;
+  }
 }
 
 i2m_err_t i2m_refine_tiling_merge(i2m_refine_t *r)
@@ -413,26 +583,19 @@ i2m_err_t i2m_refine_tiling_merge(i2m_refine_t *r)
   for (uint32_t i = 0; i < g->nactive; i++) { /* what the phase's tiles did not use, for the next */
     tile_t *tl = &g->tile[g->active[i]];
     i2m_dt_slots_release(r->dt, &tl->slots);
-    for (int l = 0; l < NLEVELS; l++) /* (hundreds of tiles: keep no memory for the empty ones) */
-      if (tl->q[l].n == 0) badlist_free(&tl->q[l]);
-    if (tl->npend == 0) {
-      i2m_free(&tl->pend);
-      tl->cap_pend = 0;
-    }
+    trim_tile(tl);
   }
+  g->nactive = 0;
   for (size_t i = 0; i < n; i++) {
     handoff_t h = g->merge[i];
     if (h.level >= 0 && i2m_dt_meta(r->dt, h.t) != h.meta) continue; /* gone meanwhile */
-    if (h.to == TILE_NONE) {
-      I2M_CALL(seq_append(g, h));
-    } else {
-      I2M_CALL(place(r, h.to, h));
-    }
+    I2M_CALL(place(r, h));
   }
   return I2M_OK;
 }
 
-i2m_err_t i2m_refine_tiling_sequential(i2m_refine_t *r)
+/* Coarse tiles: worker 0 does, in order, what no tile could (no zone). */
+static i2m_err_t sequential_pass(i2m_refine_t *r)
 {
   tiling_t *g = r->tiling;
   i2m_refine_worker_t *w = &r->workers[0];
@@ -446,12 +609,7 @@ i2m_err_t i2m_refine_tiling_sequential(i2m_refine_t *r)
       memcpy(b.v, r->dt->tv + 4 * (size_t)h.t, sizeof b.v);
       I2M_CALL(worker_push_entry(w, h.level, &b));
     } else {
-      if (w->npend == w->cap_pend) {
-        uint32_t cap = w->cap_pend ? 2 * w->cap_pend : 64;
-        I2M_CALL(i2m_realloc(cap, sizeof *w->pend, &w->pend));
-        w->cap_pend = cap;
-      }
-      w->pend[w->npend++] = h.pv;
+      I2M_CALL(pend_push(&w->pend, &w->npend, &w->cap_pend, h.pv));
     }
     int s;
     while ((s = worker_step(w)) == I2M_STEP_DONE) {
@@ -461,15 +619,97 @@ i2m_err_t i2m_refine_tiling_sequential(i2m_refine_t *r)
   }
   if (g->nseq > n0) memmove(g->seq, g->seq + n0, (g->nseq - n0) * sizeof *g->seq); /* what it sent on: next time */
   g->nseq -= n0;
-  g->rounds++;
   w->st.seconds += i2m_wtime() - t0;
+  return I2M_OK;
+}
+
+/* ---- the octree's wide tasks ---- */
+
+i2m_err_t i2m_refine_tiling_wide_tiles(i2m_refine_t *r, const uint32_t **tiles, uint32_t *ntiles)
+{
+  tiling_t *g = r->tiling;
+  uint32_t n = 0;
+  for (uint32_t id = 0; id < g->ntiles; id++) {
+    tile_t *tl = &g->tile[id];
+    if (!tile_wide_work(tl)) continue;
+    compact_lists(r->dt, tl->wq);
+    if (tile_wide_work(tl)) g->active[n++] = id;
+  }
+  g->nactive = n;
+  *tiles = g->active;
+  *ntiles = n;
+  return I2M_OK;
+}
+
+i2m_err_t i2m_refine_tile_run_wide(i2m_refine_t *r, int k, uint32_t id)
+{
+  tile_t *tl = &r->tiling->tile[id];
+  I2M_CALL(grant_tile(r, tl, tile_wide_work(tl)));
+  I2M_CALL(vgrid_reserve(&r->surf, r->dt->cap_v));
+  I2M_CALL(vgrid_reserve(&r->freev, r->dt->cap_v));
+  i2m_err_t err = run_tile(r, k, id, true);
+  i2m_dt_slots_release(r->dt, &tl->slots);
+  r->tiling->wide_tasks++;
+  return err;
+}
+
+/* Octree: the wide tasks, one at a time in tile order, each merged before the next. */
+static i2m_err_t wide_pass(i2m_refine_t *r)
+{
+  const uint32_t *tiles;
+  uint32_t n;
+  I2M_CALL(i2m_refine_tiling_wide_tiles(r, &tiles, &n));
+  uint32_t *ids = NULL; /* (the merge reuses the active list) */
+  I2M_CALL(i2m_malloc(n ? n : 1, sizeof *ids, &ids));
+  memcpy(ids, tiles, n * sizeof *ids);
+  i2m_err_t err = I2M_OK;
+  for (uint32_t i = 0; i < n && err == I2M_OK; i++) {
+    err = i2m_refine_tile_run_wide(r, 0, ids[i]);
+    r->tiling->nactive = 0;
+    if (err == I2M_OK) err = i2m_refine_tiling_merge(r);
+  }
+  i2m_free(&ids);
+  return err;
+}
+
+i2m_err_t i2m_refine_tiling_sequential(i2m_refine_t *r)
+{
+  tiling_t *g = r->tiling;
+  i2m_err_t err = g->octree ? wide_pass(r) : sequential_pass(r);
+  g->rounds++;
+  return err;
+}
+
+i2m_err_t i2m_refine_tiling_check_stuck(i2m_refine_t *r)
+{
+  const tiling_t *g = r->tiling;
+  int64_t n = 0;
+  for (size_t i = 0; g && i < g->nstuck; i++) {
+    const handoff_t *h = &g->stuck[i];
+    if (h->level < 0) n += r->dt->vkind[h->pv.v] == I2M_VK_FREE && i2m_dt_gid(r->dt, h->pv.v) == h->pv.gid;
+    else n += i2m_dt_meta(r->dt, h->t) == h->meta;
+    if (h->level >= 0 && i2m_dt_meta(r->dt, h->t) == h->meta) {
+      tet_geom_t geo;
+      tet_geom(r, h->t, PROBE_CLOSEST, &geo);
+      double c[3];
+      i2m_dt_centroid(r->dt, h->t, c);
+      const tile_t *tl = &g->tile[h->to];
+      i2m_debug("stuck: tile %u level %d centroid (%g %g %g) cc (%g %g %g) r %g label %d; wide zone (%g %g %g)-(%g %g %g) d2 %g",
+                h->to, h->level, c[0], c[1], c[2], geo.cc[0], geo.cc[1], geo.cc[2], sqrt(geo.r2), geo.label, tl->wzone[0],
+                tl->wzone[1], tl->wzone[2], tl->wzone[3], tl->wzone[4], tl->wzone[5], geo.probe.d2);
+    } else if (h->level < 0) i2m_debug("stuck: removal of vertex %u", h->pv.v);
+  }
+  I2M_CHECK(n == 0, I2M_ERR_INTERNAL,
+            "%lld bad elements could not be treated inside any subregion's zone (not even a wide one): the mesh "
+            "would break a guarantee; try a smaller --depth",
+            (long long)n);
   return I2M_OK;
 }
 
 void i2m_refine_tiling_figures(const i2m_refine_t *r, double *side, int64_t *rounds, int64_t *sequential_ops)
 {
   const tiling_t *g = r->tiling;
-  *side = g ? g->side : 0;
+  *side = g ? fmax(g->side[0], fmax(g->side[1], g->side[2])) : 0;
   *rounds = g ? g->rounds : 0;
-  *sequential_ops = g ? g->sequential_ops : 0;
+  *sequential_ops = g ? g->sequential_ops + g->wide_tasks : 0;
 }

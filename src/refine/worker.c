@@ -67,7 +67,7 @@ static void prefetch_rule_inputs(const i2m_refine_t *r, uint32_t t)
   const i2m_dt_t *dt = r->dt;
   const uint32_t *tn = dt->tn + 4 * (size_t)t, *v = dt->tv + 4 * (size_t)t;
   for (int i = 0; i < 4; i++) {
-    if (tn[i] != I2M_DT_NONE) I2M_PREFETCH(tinfo(dt, tn[i] >> 2));
+    if (tn[i] < I2M_DT_REMOTE) I2M_PREFETCH(tinfo(dt, tn[i] >> 2));
     I2M_PREFETCH(&dt->vkind[v[i]]);
     if (v[i] < r->surf.cap_next) I2M_PREFETCH(&r->surf.tag[v[i]]); /* (tags exist for the grid's vertices) */
   }
@@ -123,10 +123,11 @@ static void pend_bottom(i2m_refine_worker_t *w, pending_t pv)
 }
 
 /* An element that could not be done now (bad element b of list level, or the removal pv when
- * b is NULL): nothing was changed and no lock is kept.  A thread in the deterministic mode
- * leaves it to the sequential pass (a vertex outside its tile's zone), or keeps it for the
- * tile's next turn and stops (the tile's slots ran out); otherwise it waits at the bottom of
- * its list (another thread holds a vertex, or the capacity ran out: grow and retry). */
+ * b is NULL): nothing was changed and no lock is kept.  A worker on a tile leaves it for a
+ * wider treatment when it cannot be done inside the tile's zone (I2M_DT_FROZEN: a vertex
+ * outside the zone, a neighbour outside the block, a walk), or keeps it for the tile's next
+ * turn and stops (I2M_DT_FULL: the tile's slots ran out); otherwise it waits at the bottom of
+ * its list (I2M_DT_ROLLBACK: another thread holds a vertex; I2M_DT_FULL: grow and retry). */
 static int put_back(i2m_refine_worker_t *w, int level, const bad_t *b, pending_t pv, i2m_dt_status_t st)
 {
   i2m_dt_unlock_all(&w->ctx);
@@ -136,7 +137,7 @@ static int put_back(i2m_refine_worker_t *w, int level, const bad_t *b, pending_t
     w->pend[w->npend++] = pv; /* (it was just popped: its place is free) */
     return I2M_STEP_FULL;
   }
-  if (w->tile) {
+  if (w->tile && st == I2M_DT_FROZEN) {
     w->st.deferred++;
     return tiles_defer(w, b ? level : -1, b ? b->t : 0, b ? b->meta : 0, pv) == I2M_OK ? I2M_STEP_DONE : I2M_STEP_ERROR;
   }
@@ -147,19 +148,28 @@ static int put_back(i2m_refine_worker_t *w, int level, const bad_t *b, pending_t
   return I2M_STEP_ROLLBACK;
 }
 
+/* What a kernel status means for the element: in a tile, a rollback that no other thread
+ * caused (the zone's or the block's) and a frozen neighbour mean "not here" (I2M_DT_FROZEN). */
+static i2m_dt_status_t tile_status(const i2m_refine_worker_t *w, i2m_dt_status_t st)
+{
+  if (!w->tile) return st;
+  if (st == I2M_DT_ROLLBACK && (!w->ctx.locking || w->ctx.conflict_owner == 0)) return I2M_DT_FROZEN;
+  return st;
+}
+
 /* One R7 removal: lock the vertex, check it is still the free vertex that was queued (a
  * removed vertex's slot may hold another vertex by now), remove it, classify its new tets. */
 static int do_removal(i2m_refine_worker_t *w, pending_t pv)
 {
   i2m_dt_t *dt = w->r->dt;
   uint32_t v4[4] = {pv.v, pv.v, pv.v, pv.v};
-  if (!i2m_dt_lock_tet(&w->ctx, v4)) return put_back(w, -1, NULL, pv, I2M_DT_ROLLBACK);
+  if (!i2m_dt_lock_tet(&w->ctx, v4)) return put_back(w, -1, NULL, pv, tile_status(w, I2M_DT_ROLLBACK));
   if (dt->vkind[pv.v] != I2M_VK_FREE || i2m_dt_gid(dt, pv.v) != pv.gid) {
     i2m_dt_unlock_all(&w->ctx);
     return I2M_STEP_DONE;
   }
-  i2m_dt_status_t st = i2m_dt_remove(&w->ctx, pv.v);
-  if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) return put_back(w, -1, NULL, pv, st);
+  i2m_dt_status_t st = tile_status(w, i2m_dt_remove(&w->ctx, pv.v));
+  if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL || st == I2M_DT_FROZEN) return put_back(w, -1, NULL, pv, st);
   if (st != I2M_DT_OK) {
     i2m_dt_unlock_all(&w->ctx);
     if (st == I2M_DT_FAILED) {
@@ -205,12 +215,14 @@ static i2m_dt_status_t insert_action(i2m_refine_worker_t *w, const action_t *a, 
   }
   i2m_gidx_t gid = w->tile ? w->tile->gid_next : w->gid_next;
   i2m_dt_status_t st = i2m_dt_insert(&w->ctx, a->p, gid, a->kind, a->seed, I2M_DT_NONE, v);
-  /* (a walk could leave a tile's zone: there the sequential pass walks) */
-  if (st == I2M_DT_NOT_IN_CONFLICT && !w->ctx.locking && !w->tile) {
+  /* a walk: alone, or inside a task's block (no other thread changes it); the coarse tiles'
+   * zones leave it to their sequential pass */
+  if (st == I2M_DT_NOT_IN_CONFLICT && !w->ctx.locking && (!w->tile || w->ctx.block)) {
     uint32_t t = i2m_dt_locate(&w->ctx, a->p, a->seed);
-    st = i2m_dt_insert(&w->ctx, a->p, gid, a->kind, t, I2M_DT_NONE, v);
+    st = t == I2M_DT_NONE ? I2M_DT_FROZEN : i2m_dt_insert(&w->ctx, a->p, gid, a->kind, t, I2M_DT_NONE, v);
   }
-  if (st == I2M_DT_NOT_IN_CONFLICT && w->tile) st = I2M_DT_ROLLBACK;
+  if (st == I2M_DT_NOT_IN_CONFLICT && w->tile) st = I2M_DT_FROZEN;
+  st = tile_status(w, st);
   if (st == I2M_DT_OK) {
     if (w->tile) w->tile->gid_next++;
     else w->gid_next++;
@@ -247,7 +259,7 @@ int worker_step(i2m_refine_worker_t *w)
   if (level == NLEVELS) return I2M_STEP_IDLE;
   bad_t b;
   if (!badlist_pop_live(&w->q[level], dt, &b)) return I2M_STEP_DONE; /* gone (most popped entries are) */
-  if (!i2m_dt_lock_tet(&w->ctx, b.v)) return put_back(w, level, &b, (pending_t){0, 0}, I2M_DT_ROLLBACK);
+  if (!i2m_dt_lock_tet(&w->ctx, b.v)) return put_back(w, level, &b, (pending_t){0, 0}, tile_status(w, I2M_DT_ROLLBACK));
   if (i2m_dt_meta(dt, b.t) != b.meta) { /* stale: the tet is gone */
     i2m_dt_unlock_all(&w->ctx);
     return I2M_STEP_DONE;
@@ -258,7 +270,7 @@ int worker_step(i2m_refine_worker_t *w)
   uint32_t v, skip = 0;
   for (;;) {
     int c = classify_action(w, b.t, &a, skip);
-    if (c < 0) return put_back(w, level, &b, (pending_t){0, 0}, I2M_DT_ROLLBACK); /* beyond the tile's zone */
+    if (c < 0) return put_back(w, level, &b, (pending_t){0, 0}, I2M_DT_FROZEN); /* beyond the tile's zone */
     if (c == 0) {
       i2m_dt_unlock_all(&w->ctx);
       return I2M_STEP_DONE;
@@ -269,13 +281,13 @@ int worker_step(i2m_refine_worker_t *w)
       return err == I2M_OK ? I2M_STEP_DONE : I2M_STEP_ERROR;
     }
     i2m_dt_status_t st = insert_action(w, &a, &v);
-    if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) return put_back(w, level, &b, (pending_t){0, 0}, st);
+    if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL || st == I2M_DT_FROZEN) return put_back(w, level, &b, (pending_t){0, 0}, st);
     if (st == I2M_DT_OK) break;
     if (st == I2M_DT_DUPLICATE) w->st.duplicates++;
     else w->st.failed++;
     skip |= a.rule >= 2 && a.rule <= 4 ? (1u << 2 | 1u << 3 | 1u << 4) : 1u << a.rule;
     /* the failed attempt released every lock: take the tet's again */
-    if (!i2m_dt_lock_tet(&w->ctx, b.v)) return put_back(w, level, &b, (pending_t){0, 0}, I2M_DT_ROLLBACK);
+    if (!i2m_dt_lock_tet(&w->ctx, b.v)) return put_back(w, level, &b, (pending_t){0, 0}, tile_status(w, I2M_DT_ROLLBACK));
     if (i2m_dt_meta(dt, b.t) != b.meta) {
       i2m_dt_unlock_all(&w->ctx);
       return I2M_STEP_DONE;

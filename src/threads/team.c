@@ -370,7 +370,7 @@ static i2m_err_t tiled_rounds(team_t *tm, const tiled_work_t *wk, int64_t *phase
   i2m_refine_t *r = tm->r;
   i2m_err_t err = I2M_OK;
   while (err == I2M_OK && wk->has_work(r)) {
-    for (int color = 0; color < 8 && err == I2M_OK; color++) {
+    for (int color = 0; color < i2m_refine_tiling_colors(r) && err == I2M_OK; color++) {
       job_t jb = {tm, wk->kind, NULL, 0, 0};
       err = wk->phase(r, color, &jb.tiles, &jb.ntiles);
       if (err != I2M_OK || jb.ntiles == 0) continue;
@@ -388,6 +388,7 @@ static i2m_err_t run_tiled(team_t *tm, i2m_threads_report_t *rep)
 {
   i2m_refine_t *r = tm->r;
   i2m_err_t err = tiled_rounds(tm, &REFINE_TILES, &rep->phases);
+  if (err == I2M_OK) err = i2m_refine_tiling_check_stuck(r);
   double side;
   int64_t rounds, seq;
   i2m_refine_tiling_figures(r, &side, &rounds, &seq);
@@ -423,6 +424,8 @@ static i2m_err_t refine_deterministic(team_t *tm, const i2m_threads_opts_t *o, i
   bool coarse = o->coarse_factor > 1;
   double t0 = i2m_wtime();
   i2m_err_t err = I2M_OK;
+  if (coarse) i2m_refine_set_depth(r, o->depth > 0 ? o->depth : i2m_refine_default_depth(r, 0));
+  rep->depth = coarse ? i2m_refine_depth(r) : 0;
   i2m_refine_tiling_bound(r);
   if (coarse) {
     i2m_refine_set_scale(r, o->coarse_factor);
@@ -431,7 +434,10 @@ static i2m_err_t refine_deterministic(team_t *tm, const i2m_threads_opts_t *o, i
     i2m_refine_set_scale(r, 1.0);
   }
   double t1 = i2m_wtime();
-  if (err == I2M_OK) err = i2m_refine_tiling_begin(r);
+  /* the fine phase on the dist layer's subregions, whose zones need the coarse phase's small
+   * tets (without one, the coarse tiles and their sequential pass do it all) */
+  const bool octree = coarse;
+  if (err == I2M_OK) err = octree ? i2m_refine_octree_begin(r) : i2m_refine_tiling_begin(r);
   if (err == I2M_OK && coarse) {
     job_t jb = {tm, JOB_CLASSIFY, NULL, 0, 0};
     err = i2m_refine_tiling_prepare_classify(r);
@@ -442,7 +448,7 @@ static i2m_err_t refine_deterministic(team_t *tm, const i2m_threads_opts_t *o, i
   for (int round = 0; err == I2M_OK && round < I2M_BRIDGE_ROUNDS; round++) { /* the component rule */
     bool more = false;
     err = bridge_round(r, &more);
-    if (err == I2M_OK && more) err = i2m_refine_tiling_begin(r);
+    if (err == I2M_OK && more) err = octree ? i2m_refine_octree_begin(r) : i2m_refine_tiling_begin(r);
     if (err == I2M_OK && more) err = run_tiled(tm, rep);
     if (!more) break;
   }

@@ -63,7 +63,7 @@ static outcome_t mesh_and_check_mode(const i2m_image_t *img, int T, const i2m_re
   i2m_tetmesh_t *m = NULL;
   CU_ASSERT_FATAL(i2m_edt_create(img, &e) == I2M_OK);
   CU_ASSERT_FATAL(i2m_refine_create(img, e, p, &r) == I2M_OK);
-  i2m_threads_opts_t to = {T, coarse, true, deterministic};
+  i2m_threads_opts_t to = {T, coarse, true, deterministic, 0};
   i2m_threads_report_t rep;
   i2m_err_t err = i2m_threads_refine(r, &to, &rep);
   if (err) fprintf(stderr, "%s\n", i2m_error_message());

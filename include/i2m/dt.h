@@ -33,7 +33,8 @@ extern "C" {
 #endif
 
 #define I2M_DT_NONE UINT32_MAX
-/** A face whose neighbour lives on another rank (the dist layer): its tet is frozen.  Every
+/** A face whose neighbour lives on another rank (the dist layer): its tet is frozen (a cavity
+ *  or a star that reaches it gives I2M_DT_FROZEN, as that side cannot be seen).  Every
  *  neighbour word at or above I2M_DT_REMOTE names no local tet. */
 #define I2M_DT_REMOTE (UINT32_MAX - 1)
 
@@ -158,6 +159,16 @@ void i2m_dt_destroy(i2m_dt_t **dt);
 
 /** Makes room for at least nv vertices and nt tets (all contexts must be idle). */
 i2m_err_t i2m_dt_reserve(i2m_dt_t *dt, uint32_t nv, uint32_t nt);
+
+/** A dead tet slot (from the shared free list, else a fresh one; grows the arrays), alive
+ *  (generation moved on) with unset vertices and neighbours.  All contexts idle. */
+i2m_err_t i2m_dt_take_tet(i2m_dt_t *dt, uint32_t *t);
+/** A dead vertex slot (as i2m_dt_take_tet), of kind I2M_VK_DEAD until the caller sets it. */
+i2m_err_t i2m_dt_take_vertex(i2m_dt_t *dt, uint32_t *v);
+/** Kills tet t (generation moved on) and files its slot in the free list.  All contexts idle. */
+i2m_err_t i2m_dt_give_tet(i2m_dt_t *dt, uint32_t t);
+/** Kills vertex v and files its slot in the free list.  All contexts idle. */
+i2m_err_t i2m_dt_give_vertex(i2m_dt_t *dt, uint32_t v);
 
 /** Initialises a context for @p dt; owner >= 1 distinguishes threads. */
 i2m_err_t i2m_dt_ctx_init(i2m_dt_ctx_t *ctx, i2m_dt_t *dt, uint32_t owner, bool locking);

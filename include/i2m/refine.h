@@ -209,6 +209,31 @@ i2m_err_t i2m_refine_tiling_sequential(i2m_refine_t *r);
 /** Tile side (mm), rounds and sequential operations so far (0 without a tiling). */
 void i2m_refine_tiling_figures(const i2m_refine_t *r, double *side, int64_t *rounds, int64_t *sequential_ops);
 
+/* ---- for the dist layer: submeshes (src/refine/submesh.c).  A rank holds some tiles of the
+ * octree; everything here runs alone on the rank (no task running), except i2m_refine_pack. */
+
+/** Starts the bookkeeping on the octree's tiles (i2m_refine_octree_begin first): the tiles'
+ *  lists of tets, the id map of the vertices, the faces of other ranks.  hold_all: this rank
+ *  holds every tile (rank 0 after the coarse mesh), else none. */
+i2m_err_t i2m_refine_dist_begin(i2m_refine_t *r, bool hold_all);
+void i2m_refine_dist_end(i2m_refine_t *r);
+/** After tasks: the tets and vertices they made, filed in their tiles and in the id map. */
+i2m_err_t i2m_refine_dist_merge(i2m_refine_t *r);
+/** Does this rank hold tile id? */
+bool i2m_refine_holds(const i2m_refine_t *r, uint32_t id);
+/** Tile id's submesh as a buffer (*buf owned by the caller): its tets, their vertices with
+ *  global ids, the cells across its outer faces, its bad elements and its state.  Reads only
+ *  the tile's tets and vertices: may run while tasks run on blocks without this tile. */
+i2m_err_t i2m_refine_pack(i2m_refine_t *r, uint32_t id, void **buf, size_t *len);
+/** Tile id leaves: its tets and the vertices no local tet uses any more; the faces of the
+ *  local tets next to it become another rank's. */
+i2m_err_t i2m_refine_drop(i2m_refine_t *r, uint32_t id);
+/** A submesh arrives: joined to the local tets by matching faces on global ids.  *tile (may be
+ *  NULL) gets its tile. */
+i2m_err_t i2m_refine_unpack(i2m_refine_t *r, const void *buf, size_t len, uint32_t *tile);
+/** Before tile id's task: its pending removals whose vertex was not here when they arrived. */
+void i2m_refine_dist_resolve(i2m_refine_t *r, uint32_t id);
+
 /* ---- for the threads layer: the sliver perturbation on the tiles (src/refine/slivers.c);
  * every call not marked thread safe runs alone ---- */
 

@@ -432,6 +432,52 @@ i2m_err_t i2m_dt_slots_grant(i2m_dt_t *dt, i2m_dt_slots_t *s, uint32_t ntets, ui
 
 void i2m_dt_slots_return(i2m_dt_t *dt, i2m_dt_slots_t *s) { slots_flush(dt, s); }
 
+/* ---- single slots, for the dist layer's submeshes (all contexts idle) ---- */
+
+i2m_err_t i2m_dt_take_tet(i2m_dt_t *dt, uint32_t *t)
+{
+  if (dt->nfree_t) {
+    *t = dt->free_t[--dt->nfree_t];
+  } else {
+    const uint32_t n = i2m_dt_ntets_slots(dt);
+    if (n >= dt->cap_t) I2M_CALL(i2m_dt_reserve(dt, dt->cap_v, (uint32_t)((uint64_t)dt->cap_t + dt->cap_t / 2 + 1024 > (UINT32_MAX >> 2) - 1 ? (UINT32_MAX >> 2) - 1 : (uint64_t)dt->cap_t + dt->cap_t / 2 + 1024)));
+    I2M_CHECK(n < dt->cap_t, I2M_ERR_MEMORY, "a process can hold at most 2^30 tetrahedra; use more MPI ranks");
+    atomic_store_explicit(&dt->nt_atomic, n + 1, memory_order_relaxed);
+    *t = n;
+  }
+  meta_store(dt, *t, meta_reborn(i2m_dt_meta(dt, *t)));
+  return I2M_OK;
+}
+
+i2m_err_t i2m_dt_take_vertex(i2m_dt_t *dt, uint32_t *v)
+{
+  if (dt->nfree_v) {
+    *v = dt->free_v[--dt->nfree_v];
+    return I2M_OK;
+  }
+  const uint32_t n = i2m_dt_nverts_slots(dt);
+  if (n >= dt->cap_v) {
+    const uint64_t cap = (uint64_t)dt->cap_v + dt->cap_v / 2 + 1024;
+    I2M_CHECK(cap < UINT32_MAX - 2, I2M_ERR_MEMORY, "too many vertices for one process; use more MPI ranks");
+    I2M_CALL(i2m_dt_reserve(dt, (uint32_t)cap, dt->cap_t));
+  }
+  atomic_store_explicit(&dt->nv_atomic, n + 1, memory_order_relaxed);
+  *v = n;
+  return I2M_OK;
+}
+
+i2m_err_t i2m_dt_give_tet(i2m_dt_t *dt, uint32_t t)
+{
+  meta_store(dt, t, meta_killed(i2m_dt_meta(dt, t)));
+  return push_u32(&dt->free_t, &dt->nfree_t, &dt->cap_free_t, t);
+}
+
+i2m_err_t i2m_dt_give_vertex(i2m_dt_t *dt, uint32_t v)
+{
+  dt->vkind[v] = I2M_VK_DEAD;
+  return push_u32(&dt->free_v, &dt->nfree_v, &dt->cap_free_v, v);
+}
+
 void i2m_dt_slots_release(i2m_dt_t *dt, i2m_dt_slots_t *s)
 {
   i2m_dt_slots_return(dt, s);

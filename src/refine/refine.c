@@ -145,6 +145,7 @@ void i2m_refine_destroy(i2m_refine_t **rp)
 {
   if (!rp || !*rp) return;
   i2m_refine_t *r = *rp;
+  i2m_refine_dist_end(r);
   i2m_refine_tiling_end(r);
   for (int k = 0; k < r->nworkers && r->workers; k++) worker_free(&r->workers[k]); /* accepts freed ones */
   i2m_free(&r->workers);

@@ -73,6 +73,7 @@ static inline uint32_t patch_key(int a, int b) { return a < b ? ((uint32_t)a << 
  *  are written) and for the free vertices close to an interface (R7's candidates; inserts
  *  and removals take a striped spinlock when several threads run). */
 #define VGRID_STRIPES 4096
+#define VGRID_MEMBER 1u /* the free-vertex grid's tag of its members (0 once removed) */
 typedef struct {
   double h, inv_h;          /* cell side and its inverse */
   double origin[3];         /* corner of cell (0,0,0) */
@@ -166,6 +167,11 @@ typedef struct {
   int32_t where;  /* HAND_* */
 } handoff_t;
 
+/** A tet recorded with its meta (stale once the tet changes). */
+typedef struct {
+  uint32_t t, meta;
+} tetref_t;
+
 /** A tile: its elements, its slots, its global ids. */
 typedef struct {
   badlist_t q[NLEVELS];
@@ -181,6 +187,9 @@ typedef struct {
   double wzone[6];    /* octree: the wide task's zone (grown by three margins) */
   i2m_dt_block_t block, wblock; /* octree: the cells its task (its wide task) holds: 3^3 (5^3) */
   uint32_t grant;     /* tets granted per queued element in a phase (doubles when they run out) */
+  tetref_t *tets;     /* dist: the tile's tets (whose centroid it holds), stale entries included */
+  uint32_t ntets, cap_tets, live_tets; /* (live_tets: when the list was last compacted) */
+  bool held;          /* dist: this process holds the tile's tets */
 } tile_t;
 
 typedef struct {
@@ -224,6 +233,10 @@ struct i2m_refine_worker {
   bool tile_wide;       /* it runs the tile's wide task (what it cannot do is stuck) */
   handoff_t *out;       /* this phase's hand-overs */
   size_t nout, cap_out;
+  tetref_t *born;       /* dist: the tets it made (filed in their tiles by i2m_refine_dist_merge) */
+  uint32_t nborn, cap_born;
+  uint32_t *bornv;      /* dist: the vertices it made (filed in the id map) */
+  uint32_t nbornv, cap_bornv;
   char pad_back[64];
 };
 
@@ -258,6 +271,7 @@ struct i2m_refine {
   pieces_t pieces;                  /* the pieces of the mesh as it is (pieces_get), when pieces_valid */
   bool pieces_valid;
   struct sliver_pass *slivers;      /* owned: the sliver perturbation under way (slivers.c), or NULL */
+  struct submesh *sub;              /* owned: the dist layer's bookkeeping (submesh.c), or NULL */
 };
 
 /* classify.c */
@@ -338,6 +352,13 @@ void tiles_unbind(i2m_refine_worker_t *w);
 bool tiles_zone_holds(const i2m_refine_worker_t *w, const double x[3]);
 /** Does the ball (centre c, squared radius r2) lie in that zone (always, without a tile)? */
 bool tiles_ball_fits(const i2m_refine_worker_t *w, const double c[3], double r2);
+
+/* submesh.c */
+/** The dist layer's bookkeeping is on: workers record what they make (worker w: its tets and
+ *  vertices). */
+static inline bool dist_tracking(const i2m_refine_t *r) { return r->sub != NULL; }
+i2m_err_t dist_note_tets(i2m_refine_worker_t *w, const uint32_t *t, uint32_t n);
+i2m_err_t dist_note_vertex(i2m_refine_worker_t *w, uint32_t v);
 
 /* worker.c */
 i2m_err_t worker_init(i2m_refine_worker_t *w, i2m_refine_t *r, uint32_t owner, bool locking);

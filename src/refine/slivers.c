@@ -164,20 +164,24 @@ static i2m_err_t label_created(perturb_t *P)
     tinfo(r->dt, t)->label = (uint16_t)g.label;
     P->changed[P->nchanged++] = t;
   }
-  return I2M_OK;
+  return dist_tracking(r) ? dist_note_tets(P->w, ctx->newt, ctx->nnew) : I2M_OK;
 }
 
-/* Takes vertex v out of the mesh (and, a surface vertex, out of the surface grid). */
+/* Takes vertex v out of the mesh (and out of its grid: the surface vertices', or R7's). */
 static i2m_dt_status_t take_out(perturb_t *P, uint32_t v)
 {
   i2m_refine_t *r = P->w->r;
   i2m_dt_ctx_t *ctx = &P->w->ctx;
   const bool surface = r->dt->vkind[v] == I2M_VK_SURFACE;
+  const uint32_t tag = surface ? r->surf.tag[v] : 0;
+  const bool near = v < r->freev.cap_next && r->freev.tag[v] == VGRID_MEMBER;
   if (surface) vgrid_remove(&r->surf, r->dt, v);
+  if (near) vgrid_remove(&r->freev, r->dt, v);
   const i2m_dt_status_t st = i2m_dt_remove(ctx, v);
   i2m_dt_unlock_all(ctx);
   if (st != I2M_DT_OK) {
-    if (surface && vgrid_insert(&r->surf, r->dt, v, r->surf.tag[v]) != I2M_OK) return I2M_DT_FAILED;
+    if (surface && vgrid_insert(&r->surf, r->dt, v, tag) != I2M_OK) return I2M_DT_FAILED;
+    if (near && vgrid_insert(&r->freev, r->dt, v, VGRID_MEMBER) != I2M_OK) return I2M_DT_FAILED;
     return st;
   }
   return label_created(P) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
@@ -216,10 +220,11 @@ static uint32_t locate_near(const i2m_refine_worker_t *w, uint32_t t, const doub
   return I2M_DT_NONE;
 }
 
-/* Puts a vertex (global id gid, kind, patch tag for a surface vertex) at p, which a tet near
- * tet start holds; *vout is its slot.  ROLLBACK when p lies beyond the walk's reach. */
-static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, uint8_t kind, uint32_t tag, uint32_t start,
-                              uint32_t *vout)
+/* Puts a vertex (global id gid, kind, patch tag for a surface vertex, one of R7's candidates
+ * when near) at p, which a tet near tet start holds; *vout is its slot.  ROLLBACK when p lies
+ * beyond the walk's reach. */
+static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, uint8_t kind, uint32_t tag, bool near,
+                              uint32_t start, uint32_t *vout)
 {
   i2m_refine_t *r = P->w->r;
   i2m_dt_ctx_t *ctx = &P->w->ctx;
@@ -229,6 +234,8 @@ static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, u
   i2m_dt_unlock_all(ctx);
   if (st != I2M_DT_OK) return st;
   if (kind == I2M_VK_SURFACE && vgrid_insert(&r->surf, r->dt, *vout, tag) != I2M_OK) return I2M_DT_FAILED;
+  if (near && vgrid_insert(&r->freev, r->dt, *vout, VGRID_MEMBER) != I2M_OK) return I2M_DT_FAILED;
+  if (dist_tracking(r) && dist_note_vertex(P->w, *vout) != I2M_OK) return I2M_DT_FAILED;
   return label_created(P) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
 }
 
@@ -277,13 +284,14 @@ static int try_move(perturb_t *P, uint32_t *v, const double p[3], double floor_c
   const i2m_gidx_t gid = i2m_dt_gid(dt, *v);
   const uint8_t kind = dt->vkind[*v];
   const uint32_t tag = kind == I2M_VK_SURFACE ? r->surf.tag[*v] : 0;
+  const bool near = *v < r->freev.cap_next && r->freev.tag[*v] == VGRID_MEMBER;
   P->nchanged = 0;
   P->tried++;
   i2m_dt_status_t st = take_out(P, *v);
   if (st == I2M_DT_FAILED) return MOVE_ERROR;
   if (st != I2M_DT_OK) return st == I2M_DT_ROLLBACK || st == I2M_DT_FULL ? MOVE_DEFERRED : MOVE_UNDONE; /* nothing changed */
   uint32_t start = P->w->ctx.newt[0], moved;
-  st = put_in(P, p, gid, kind, tag, start, &moved);
+  st = put_in(P, p, gid, kind, tag, near, start, &moved);
   if (st == I2M_DT_FAILED) return MOVE_ERROR;
   int verdict = MOVE_UNDONE;
   if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) verdict = MOVE_DEFERRED;
@@ -302,7 +310,7 @@ static int try_move(perturb_t *P, uint32_t *v, const double p[3], double floor_c
     if (take_out(P, moved) != I2M_DT_OK) return MOVE_ERROR;
     start = P->w->ctx.newt[0];
   }
-  if (put_in(P, x0, gid, kind, tag, start, v) != I2M_DT_OK) return MOVE_ERROR;
+  if (put_in(P, x0, gid, kind, tag, near, start, v) != I2M_DT_OK) return MOVE_ERROR;
   return note_touched(P) == I2M_OK ? verdict : MOVE_ERROR;
 }
 

@@ -252,6 +252,7 @@ i2m_err_t i2m_refine_tile_run(i2m_refine_t *r, int k, uint32_t id) { return run_
 
 static void tile_free(tile_t *tl)
 {
+  i2m_free(&tl->tets);
   for (int l = 0; l < NLEVELS; l++) {
     badlist_free(&tl->q[l]);
     badlist_free(&tl->wq[l]);

@@ -84,6 +84,7 @@ i2m_err_t vgrid_reserve(vgrid_t *g, uint32_t cap)
   I2M_CALL(i2m_realloc_large(cap, sizeof *g->next, &g->next));
   I2M_CALL(i2m_realloc_large(cap, sizeof *g->tag, &g->tag));
   for (uint32_t v = g->cap_next; v < cap; v++) atomic_init(&g->next[v], I2M_DT_NONE);
+  memset(g->tag + g->cap_next, 0, (cap - g->cap_next) * sizeof *g->tag);
   g->cap_next = cap;
   return I2M_OK;
 }
@@ -110,6 +111,7 @@ void vgrid_remove(vgrid_t *g, const i2m_dt_t *dt, uint32_t v)
   for (uint32_t u; (u = atomic_load_explicit(link, memory_order_relaxed)) != I2M_DT_NONE; link = &g->next[u])
     if (u == v) {
       atomic_store_explicit(link, atomic_load_explicit(&g->next[v], memory_order_relaxed), memory_order_relaxed);
+      g->tag[v] = 0;
       break;
     }
   stripe_unlock(g, c);

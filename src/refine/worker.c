@@ -21,6 +21,8 @@ i2m_err_t worker_init(i2m_refine_worker_t *w, i2m_refine_t *r, uint32_t owner, b
 
 void worker_free(i2m_refine_worker_t *w)
 {
+  i2m_free(&w->born);
+  i2m_free(&w->bornv);
   i2m_dt_ctx_free(&w->ctx);
   for (int l = 0; l < NLEVELS; l++) badlist_free(&w->q[l]);
   i2m_free(&w->pend);
@@ -96,6 +98,7 @@ i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, u
     tinfo(w->r->dt, newt[k])->label = (uint16_t)w->geom[k].label;
   }
   for (uint32_t k = 0; k < n; k++) I2M_CALL(push_classified(w, newt[k], &w->geom[k]));
+  if (dist_tracking(w->r)) I2M_CALL(dist_note_tets(w, newt, n));
   w->st.tets_created += n;
   return I2M_OK;
 }
@@ -162,6 +165,8 @@ static i2m_dt_status_t tile_status(const i2m_refine_worker_t *w, i2m_dt_status_t
 static int do_removal(i2m_refine_worker_t *w, pending_t pv)
 {
   i2m_dt_t *dt = w->r->dt;
+  if (pv.v >= i2m_dt_nverts_slots(dt)) /* (a submesh's, whose vertex this rank does not hold) */
+    return w->tile ? put_back(w, -1, NULL, pv, I2M_DT_FROZEN) : I2M_STEP_DONE;
   uint32_t v4[4] = {pv.v, pv.v, pv.v, pv.v};
   if (!i2m_dt_lock_tet(&w->ctx, v4)) return put_back(w, -1, NULL, pv, tile_status(w, I2M_DT_ROLLBACK));
   if (dt->vkind[pv.v] != I2M_VK_FREE || i2m_dt_gid(dt, pv.v) != pv.gid) {
@@ -240,7 +245,8 @@ static i2m_err_t after_insertion(i2m_refine_worker_t *w, const action_t *a, cons
   w->st.rule[a->rule]++;
   /* the new vertex joins its grid before its tets are judged (R1 looks at it) */
   if (a->kind == I2M_VK_SURFACE) I2M_CALL(vgrid_insert(&r->surf, dt, v, a->patch));
-  if (a->kind == I2M_VK_FREE && a->dist2 <= r->four_delta2) I2M_CALL(vgrid_insert(&r->freev, dt, v, 0));
+  if (a->kind == I2M_VK_FREE && a->dist2 <= r->four_delta2) I2M_CALL(vgrid_insert(&r->freev, dt, v, VGRID_MEMBER));
+  if (dist_tracking(r)) I2M_CALL(dist_note_vertex(w, v));
   I2M_CALL(keep_created(w));
   I2M_CALL(worker_process_created(w, w->created, w->ncreated));
   /* the point may have gone in elsewhere (a neighbour's ball, a walk): a tet that survives

@@ -64,10 +64,7 @@ else
 endif
 
 # ---- sources ------------------------------------------------------------------------------
-LAYERS     := base geom image delaunay refine threads io
-ifeq ($(HAVE_MPI),1)
-  LAYERS   += dist
-endif
+LAYERS     := base geom image delaunay refine threads dist io
 LIB_SRC    := $(foreach l,$(LAYERS),$(wildcard src/$(l)/*.c))
 LIB_OBJ    := $(LIB_SRC:%.c=$(BUILD)/%.o)
 LIB        := $(LIBDIR)/libi2m.a

@@ -10,6 +10,7 @@
 #ifndef I2M_IO_H
 #define I2M_IO_H
 
+#include "i2m/dist.h"
 #include "i2m/tetmesh.h"
 
 #ifdef __cplusplus
@@ -17,7 +18,7 @@ extern "C" {
 #endif
 
 /** Mesh file formats. */
-typedef enum { I2M_FORMAT_UNKNOWN = 0, I2M_FORMAT_VTU, I2M_FORMAT_MEDIT, I2M_FORMAT_GMSH } i2m_format_t;
+typedef enum { I2M_FORMAT_UNKNOWN = 0, I2M_FORMAT_VTU, I2M_FORMAT_MEDIT, I2M_FORMAT_GMSH, I2M_FORMAT_PVTU } i2m_format_t;
 
 /** Format for a file name (by extension, case-insensitive); I2M_FORMAT_UNKNOWN if none. */
 i2m_format_t i2m_format_from_path(const char *path);
@@ -29,6 +30,13 @@ i2m_err_t i2m_mesh_check_writable(const char *path);
 /** Writes @p m to @p path in the format given by its extension.  Not collective.
  *  On error the message names the file and the problem (unknown extension, disk full). */
 i2m_err_t i2m_mesh_write(const i2m_tetmesh_t *m, const char *path);
+
+/** Writes a distributed mesh (each rank's piece, with global vertex ids).  NAME.pvtu: every
+ *  rank writes its piece NAME_<rank>.vtu beside it (its tets, material, the point array
+ *  GlobalNodeId; no ghost cells) and rank 0 writes the .pvtu that names them.  Any other
+ *  format: the pieces are stitched on rank 0 (vertices merged by global id), which writes the
+ *  one file; *m on rank 0 is then the whole mesh.  Collective; the same error on every rank. */
+i2m_err_t i2m_mesh_write_par(const i2m_par_t *par, i2m_tetmesh_t **m, const char *path);
 
 #ifdef __cplusplus
 }

@@ -233,6 +233,29 @@ i2m_err_t i2m_refine_drop(i2m_refine_t *r, uint32_t id);
 i2m_err_t i2m_refine_unpack(i2m_refine_t *r, const void *buf, size_t len, uint32_t *tile);
 /** Before tile id's task: its pending removals whose vertex was not here when they arrived. */
 void i2m_refine_dist_resolve(i2m_refine_t *r, uint32_t id);
+/** Before a job of tiles (run by i2m_refine_tile_run, then i2m_refine_tiling_merge): their
+ *  lists without stale entries, their slots granted, the grids' room made. */
+i2m_err_t i2m_refine_tiles_prepare(i2m_refine_t *r, const uint32_t *tiles, uint32_t n);
+/** Tile id's live bad elements (for its task, for its wide task; its lists cleared of stale
+ *  entries) and about how many tets it holds (its list's entries, some stale). */
+void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t *work, int64_t *wide, int64_t *tets);
+/** The tiling's cells along each axis. */
+void i2m_refine_tiling_cells(const i2m_refine_t *r, int32_t n[3]);
+
+/** A face of another rank's: its sorted global ids, the cell across it, a label index (the
+ *  local tet's, when sent; the one across, when received). */
+typedef struct {
+  i2m_gidx_t key[3];
+  int32_t cell;
+  uint16_t label;
+} i2m_face_label_t;
+/** The faces of local tets whose other side another rank holds: how many, and each with the
+ *  cell across and the local tet's label (out: room for i2m_refine_dist_nfaces). */
+size_t i2m_refine_dist_nfaces(const i2m_refine_t *r);
+void i2m_refine_dist_faces(const i2m_refine_t *r, i2m_face_label_t *out);
+/** The labels of the tets across such faces, as the ranks across sent them; returns how many
+ *  named a face this rank does not have (0 when the ranks agree). */
+int64_t i2m_refine_dist_ghosts(i2m_refine_t *r, const i2m_face_label_t *faces, size_t n);
 
 /* ---- for the threads layer: the sliver perturbation on the tiles (src/refine/slivers.c);
  * every call not marked thread safe runs alone ---- */

@@ -4,6 +4,7 @@
 
 #include <stdio.h>
 
+#include "i2m/dist.h"
 #include "i2m/quality.h"
 #include "i2m/refine.h"
 #include "i2m/threads.h"
@@ -39,6 +40,7 @@ typedef struct {
   size_t peak_rss;                   /**< bytes */
   int threads, ranks;
   const i2m_threads_report_t *team;  /**< per-thread figures, or NULL */
+  const i2m_dist_report_t *dist;     /**< the distributed level's figures (per rank), or NULL */
   const i2m_quality_t *quality;
  const i2m_label_pieces_t *pieces; /**< per label index: components and pieces, or NULL */
   int64_t whole_min_voxels;         /**< the census's large components: at least this many voxels */

@@ -20,6 +20,8 @@ typedef struct i2m_tetmesh {
   int32_t *tri;        /**< owned: [ntri][3] vertex indices, oriented so that the normal
                             (right-hand rule) points from tri_label[2i] to tri_label[2i+1] */
   int64_t *tri_label;  /**< owned: [ntri][2] label values (a < b); background is 0 */
+  int64_t *gid;        /**< owned, or NULL: [nv] the vertices' global ids (a piece of a
+                            distributed mesh: writers add the array GlobalNodeId) */
 } i2m_tetmesh_t;
 
 /** Allocates a mesh with room for the given counts (arrays uninitialised, counts set). */

@@ -56,10 +56,50 @@ void i2m_threads_limit(int n);
 i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep);
 void i2m_threads_report_free(i2m_threads_report_t *rep);
 
+/** The coarse phase alone (the dist layer's rank 0): refinement at coarse_factor x delta and
+ *  the size bounds (speculative, or on the coarse tiles when deterministic), every tet of the
+ *  block kept below the octree's background bound (its depth set before), then every tet
+ *  classified again under the real bounds into the octree's tiles (left in place).  Not
+ *  collective. */
+i2m_err_t i2m_threads_coarse(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep);
+
 /** The sliver perturbation (i2m_refine_perturb_slivers) on the threads that refined (the
  *  tiles of one colour at a time): the same mesh whatever their number.  Not collective. */
 i2m_err_t i2m_threads_perturb_slivers(i2m_refine_t *r, const i2m_threads_opts_t *o, double bound,
                                       i2m_sliver_stats_t *st);
+
+/* ---- the worker pool of the dist layer (src/threads/pool.c) ---- */
+
+/** What the pool's workers do. */
+typedef enum {
+  I2M_POOL_TILES,    /**< refine tiles (each by one worker, taken in turn) */
+  I2M_POOL_WIDE,     /**< one tile's wide task (by the first worker) */
+  I2M_POOL_CLASSIFY, /**< classify every tet again into the tiles (i2m_refine_tiling_classify) */
+  I2M_POOL_SLIVERS   /**< the sliver perturbation of tiles (each by one worker) */
+} i2m_pool_job_kind_t;
+
+typedef struct {
+  i2m_pool_job_kind_t kind;
+  const uint32_t *tiles; /**< borrowed until the job ends */
+  uint32_t ntiles;
+  int64_t *created;      /**< borrowed, or NULL: [ntiles] the tets each tile's task made */
+} i2m_pool_job_t;
+
+typedef struct i2m_pool i2m_pool_t;
+
+/** The nested master-worker model on one process: runs master(ctx, pool) on the calling
+ *  thread (the one that initialised MPI: only it talks MPI) while o->threads worker threads
+ *  run the jobs it starts; returns master's result.  Worker threads bound to cores from
+ *  pin_offset (another process's workers may use the first ones).  Not collective. */
+i2m_err_t i2m_threads_serve(i2m_refine_t *r, const i2m_threads_opts_t *o, int pin_offset,
+                            i2m_err_t (*master)(void *ctx, i2m_pool_t *pool), void *ctx, i2m_threads_report_t *rep);
+/** Master: starts a job (none running); returns at once. */
+void i2m_pool_start(i2m_pool_t *p, const i2m_pool_job_t *job);
+/** Master: has the job ended?  Then *err is its result (the message set). */
+bool i2m_pool_finished(i2m_pool_t *p, i2m_err_t *err);
+/** Master: a job to its end. */
+i2m_err_t i2m_pool_run(i2m_pool_t *p, const i2m_pool_job_t *job);
+int i2m_pool_threads(const i2m_pool_t *p);
 
 #ifdef __cplusplus
 }

@@ -1,9 +1,17 @@
 /* cli layer: bin/i2m, the image-to-mesh driver: read, distance transform, refinement,
- * extraction, write, report.  The only place that calls exit codes. */
+ * extraction, write, report.  The only place that calls exit codes.
+ *
+ * Started by an MPI launcher (mpirun, mpiexec, srun), every rank reads the image and makes its
+ * distance transform, then the dist layer refines in parallel (rank 0's threads build the
+ * coarse mesh; the ranks refine the octree's subregions, each keeping what it refined); each
+ * rank extracts the tets it holds and the writer either writes them as pieces (.pvtu) or
+ * stitches them on rank 0.  Every step that can fail agrees on the error across the ranks,
+ * so that all of them end with the same exit code and rank 0 prints the one message. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "i2m/dist.h"
 #include "i2m/edt.h"
 #include "i2m/io.h"
 #include "i2m/quality.h"
@@ -13,14 +21,17 @@
 #include "options.h"
 
 typedef struct {
+  const i2m_par_t *par;
+  bool distributed;            /* started under MPI: the dist layer refines */
   cli_options_t opt;
   i2m_image_t *img;
   i2m_edt_t *edt;
   i2m_refine_t *ref;
   i2m_tetmesh_t *mesh;
-  i2m_label_pieces_t *pieces; /* per label: image components and mesh pieces */
+  i2m_label_pieces_t *pieces;  /* per label: image components and mesh pieces */
   i2m_quality_t quality;
   i2m_threads_report_t team;
+  i2m_dist_report_t dist;
   i2m_report_t rep;
   double t0, tphase;
 } run_t;
@@ -49,50 +60,73 @@ static void warn_split_components(const run_t *r)
   }
 }
 
+/* The same step on every rank, its error agreed on. */
+#define AGREE(r, call) I2M_CALL(i2m_par_agree((r)->par, (call)))
+
+static i2m_err_t refine(run_t *r)
+{
+  cli_options_t *o = &r->opt;
+  i2m_threads_opts_t to = {o->threads, o->coarse_factor, !o->no_pin, o->deterministic != 0, o->depth};
+  if (!r->distributed) return i2m_threads_refine(r->ref, &to, &r->team);
+  const char *inject = getenv("I2M_INJECT_FAILURE"); /* (tests: a rank that fails in the middle of refinement) */
+  i2m_dist_opts_t d = {to, o->trace, inject ? atoi(inject) : -1};
+  return i2m_dist_refine(r->par, r->ref, &d, &r->team, &r->dist);
+}
+
 static i2m_err_t run_mesher(run_t *r)
 {
   cli_options_t *o = &r->opt;
   phase_begin(r, "reading the image");
-  I2M_CALL(i2m_image_read(o->input, &r->img));
-  I2M_CALL(i2m_refine_params_check(&o->params, r->img));
+  AGREE(r, i2m_image_read(o->input, &r->img));
+  AGREE(r, i2m_refine_params_check(&o->params, r->img));
   phase_end(r, I2M_PHASE_READ);
 
   phase_begin(r, "distance transform");
-  I2M_CALL(i2m_edt_create(r->img, &r->edt));
+  AGREE(r, i2m_edt_create(r->img, &r->edt));
   if (r->edt->labels_packed) i2m_image_release_voxels(r->img); /* the transform answers label queries */
   phase_end(r, I2M_PHASE_EDT);
 
   phase_begin(r, "refinement");
-  I2M_CALL(i2m_refine_create(r->img, r->edt, &o->params, &r->ref));
-  i2m_threads_opts_t to = {o->threads, o->coarse_factor, !o->no_pin, o->deterministic != 0, o->depth};
-  I2M_CALL(i2m_threads_refine(r->ref, &to, &r->team));
+  AGREE(r, i2m_refine_create(r->img, r->edt, &o->params, &r->ref));
+  i2m_err_t err = refine(r);
+  if (r->distributed) I2M_CALL(err); /* (agreed on inside) */
+  else AGREE(r, err);
   if (o->sliver_angle > 0) { /* (the rules it applies read the grids: before they go) */
     phase_end(r, I2M_PHASE_REFINE);
     phase_begin(r, "sliver perturbation");
-    I2M_CALL(i2m_threads_perturb_slivers(r->ref, &to, o->sliver_angle, &r->rep.slivers));
+    i2m_threads_opts_t to = {o->threads, o->coarse_factor, !o->no_pin, o->deterministic != 0, o->depth};
+    AGREE(r, r->distributed ? I2M_ERROR(I2M_ERR_UNSUPPORTED, "--sliver-angle under MPI is not there yet")
+                            : i2m_threads_perturb_slivers(r->ref, &to, o->sliver_angle, &r->rep.slivers));
     r->rep.sliver_angle = o->sliver_angle;
   }
-  if (o->check) I2M_CALL(i2m_dt_check(i2m_refine_dt(r->ref), true));
+  if (o->check) AGREE(r, i2m_dt_check(i2m_refine_dt(r->ref), true));
   i2m_refine_release_scratch(r->ref); /* the grids' memory, before extraction adds the mesh */
   phase_end(r, o->sliver_angle > 0 ? I2M_PHASE_SLIVERS : I2M_PHASE_REFINE);
 
   phase_begin(r, "extraction");
-  I2M_CALL(i2m_refine_repair_fragments(r->ref)); /* (asks the transform about the image) */
-  I2M_CALL(i2m_refine_census(r->ref, I2M_WHOLE_MIN_VOXELS, &r->pieces));
-  warn_split_components(r);
+  if (!r->distributed || getenv("I2M_FRAG")) AGREE(r, i2m_refine_repair_fragments(r->ref)); /* (asks the transform about the image) */
+  AGREE(r, i2m_refine_census(r->ref, I2M_WHOLE_MIN_VOXELS, &r->pieces));
+  if (r->par->rank == 0) warn_split_components(r);
   i2m_edt_destroy(&r->edt);
   i2m_image_release_voxels(r->img);
-  if (o->report) /* (only the JSON report gives it: one pass over the whole triangulation) */
+  if (o->report) { /* (only the JSON report gives it: one pass over the whole triangulation) */
     r->rep.checksum = i2m_dt_checksum(i2m_refine_dt(r->ref), &r->rep.working_tets);
-  I2M_CALL(i2m_refine_extract(r->ref, &r->mesh));
+    int64_t sums[2] = {(int64_t)r->rep.checksum, r->rep.working_tets}; /* (sums modulo 2^64) */
+    i2m_par_sum_i64(r->par, sums, 2);
+    r->rep.checksum = (uint64_t)sums[0];
+    r->rep.working_tets = sums[1];
+  }
+  AGREE(r, i2m_refine_extract(r->ref, &r->mesh));
   i2m_refine_release_mesh(r->ref);
   phase_end(r, I2M_PHASE_EXTRACT);
-  I2M_CHECK(r->mesh->nt > 0, I2M_ERR_INPUT,
+  int64_t nt = r->mesh->nt;
+  i2m_par_sum_i64(r->par, &nt, 1);
+  I2M_CHECK(nt > 0, I2M_ERR_INPUT,
             "%s: the mesh is empty: the labelled region is smaller than what delta = %g mm can resolve; try a smaller --delta",
             o->input, i2m_refine_params(r->ref)->delta);
 
   phase_begin(r, "writing the mesh");
-  I2M_CALL(i2m_mesh_write(r->mesh, o->output));
+  I2M_CALL(i2m_mesh_write_par(r->par, &r->mesh, o->output)); /* (agreed on inside) */
   phase_end(r, I2M_PHASE_WRITE);
   return I2M_OK;
 }
@@ -101,25 +135,34 @@ static i2m_err_t report(run_t *r)
 {
   i2m_report_t *rep = &r->rep;
   const i2m_refine_params_t *p = i2m_refine_params(r->ref);
+  const bool whole = r->par->size == 1 || i2m_format_from_path(r->opt.output) != I2M_FORMAT_PVTU;
   phase_begin(r, "quality figures");
-  I2M_CALL(i2m_quality_compute(r->mesh, r->img, p->ratio, p->facet_angle, &r->quality));
+  if (r->par->rank == 0 || !whole) /* (one file: rank 0 has the whole mesh; pieces: each its own) */
+    AGREE(r, i2m_quality_compute(r->mesh, r->img, p->ratio, p->facet_angle, &r->quality));
+  else
+    AGREE(r, I2M_OK);
+  if (!whole) i2m_dist_reduce_quality(r->par, &r->quality);
   phase_end(r, I2M_PHASE_QUALITY);
   rep->input = r->opt.input;
   rep->output = r->opt.output;
   rep->img = r->img;
   rep->params = p;
   i2m_refine_get_stats(r->ref, &rep->stats);
-  rep->nv = r->mesh->nv;
-  rep->nt = r->mesh->nt;
-  rep->ntri = r->mesh->ntri;
+  int64_t counts[3] = {r->mesh->nv, r->mesh->nt, r->mesh->ntri};
+  if (!whole) i2m_par_sum_i64(r->par, counts, 3); /* (vertices shared by pieces counted in each) */
+  rep->nv = counts[0];
+  rep->nt = counts[1];
+  rep->ntri = counts[2];
   rep->total_seconds = i2m_wtime() - r->t0;
   rep->peak_rss = i2m_peak_rss_bytes();
   rep->threads = r->team.threads;
-  rep->ranks = 1;
+  rep->ranks = r->par->size;
   rep->team = &r->team;
+  rep->dist = r->distributed ? &r->dist : NULL;
   rep->quality = &r->quality;
   rep->pieces = r->pieces;
   rep->whole_min_voxels = I2M_WHOLE_MIN_VOXELS;
+  if (r->par->rank != 0) return I2M_OK;
   if (!r->opt.quiet) i2m_report_print(stdout, rep);
   if (r->opt.report) I2M_CALL(i2m_report_write_json(r->opt.report, rep));
   return I2M_OK;
@@ -128,59 +171,53 @@ static i2m_err_t report(run_t *r)
 static void run_free(run_t *r)
 {
   i2m_quality_free(&r->quality);
-  i2m_free(&r->pieces);
   i2m_threads_report_free(&r->team);
+  i2m_dist_report_free(&r->dist);
+  i2m_free(&r->pieces);
   i2m_tetmesh_destroy(&r->mesh);
   i2m_refine_destroy(&r->ref);
   i2m_edt_destroy(&r->edt);
   i2m_image_destroy(&r->img);
 }
 
-/* The number of processes an MPI launcher (mpirun, mpiexec, srun with PMI) started, from
- * the variables it sets (1 when none).  The distributed level is not built yet: rather than
- * N processes each meshing the whole image into the same file, each of them stops. */
-static long launched_processes(void)
+/* One error line, on rank 0 (the message says which rank failed). */
+static int fail(const i2m_par_t *par, int code)
 {
-  static const char *const vars[] = {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"};
-  for (size_t k = 0; k < sizeof vars / sizeof *vars; k++) {
-    const char *v = getenv(vars[k]);
-    long n = v ? strtol(v, NULL, 10) : 0;
-    if (n > 1) return n;
-  }
-  return 1;
+  if (par->rank == 0) fprintf(stderr, "i2m: %s\n", i2m_error_message());
+  return code;
 }
 
 int main(int argc, char **argv)
 {
-  run_t r;
   i2m_malloc_tune();
-  memset(&r, 0, sizeof r);
-  r.t0 = i2m_wtime();
-  if (cli_parse(argc, argv, &r.opt) != I2M_OK) {
+  i2m_par_t par;
+  if (i2m_par_init(&argc, &argv, &par) != I2M_OK) {
     fprintf(stderr, "i2m: %s\n", i2m_error_message());
     return 2;
   }
-  if (r.opt.help) {
-    cli_usage(stdout);
-    return 0;
+  run_t r;
+  memset(&r, 0, sizeof r);
+  r.par = &par;
+  r.distributed = par.mpi;
+  r.t0 = i2m_wtime();
+  int code = 0;
+  if (i2m_par_agree(&par, cli_parse(argc, argv, &r.opt)) != I2M_OK) { /* (a bad option on one rank stops all) */
+    code = fail(&par, 2);
+  } else if (r.opt.help || r.opt.version) {
+    if (par.rank == 0 && r.opt.help) cli_usage(stdout);
+    if (par.rank == 0 && r.opt.version) printf("i2m 0.1\n");
+  } else {
+    /* rank 0 shows progress and the summary; the others only warnings, with their rank */
+    const i2m_log_level_t level = r.opt.quiet ? I2M_LOG_QUIET : r.opt.verbose ? I2M_LOG_DEBUG : I2M_LOG_INFO;
+    i2m_log_set_level(par.rank == 0 || level <= I2M_LOG_WARN ? level : I2M_LOG_WARN);
+    i2m_log_set_prefix(par.prefix);
+    if (r.opt.threads > 0) i2m_threads_limit(r.opt.threads); /* every phase, not only refinement */
+    i2m_err_t err = run_mesher(&r);
+    if (err == I2M_OK) err = report(&r);
+    err = i2m_par_agree(&par, err);
+    if (err != I2M_OK) code = fail(&par, 1);
+    run_free(&r);
   }
-  if (r.opt.version) {
-    printf("i2m 0.1\n");
-    return 0;
-  }
-  long nproc = launched_processes();
-  if (nproc > 1) {
-    fprintf(stderr,
-            "i2m: started as one of %ld MPI processes, but the MPI level is not implemented yet: run one process "
-            "(it uses every core of the node; see --threads)\n",
-            nproc);
-    return 2;
-  }
-  i2m_log_set_level(r.opt.quiet ? I2M_LOG_QUIET : r.opt.verbose ? I2M_LOG_DEBUG : I2M_LOG_INFO);
-  if (r.opt.threads > 0) i2m_threads_limit(r.opt.threads); /* every phase, not only refinement */
-  i2m_err_t err = run_mesher(&r);
-  if (err == I2M_OK) err = report(&r);
-  if (err != I2M_OK) fprintf(stderr, "i2m: %s\n", i2m_error_message());
-  run_free(&r);
-  return err == I2M_OK ? 0 : 1;
+  i2m_par_finalize(&par);
+  return code;
 }

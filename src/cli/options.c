@@ -14,7 +14,7 @@ void cli_usage(FILE *f)
           "usage: i2m INPUT -o OUTPUT [options]\n"
           "Meshes a segmented 3D image (every voxel a tissue label) into a conforming tetrahedral mesh.\n"
           "  INPUT                 .nrrd .nhdr .nii .nii.gz .mha .mhd .inr .inr.gz\n"
-          "  -o, --output FILE     .vtu (VTK), .mesh (Medit) or .msh (Gmsh 4.1)\n"
+          "  -o, --output FILE     .vtu (VTK), .pvtu (VTK pieces: one per MPI rank), .mesh (Medit) or .msh (Gmsh 4.1)\n"
           "  --delta D             surface sampling / fidelity distance in mm (default: max(0.8 x smallest spacing, 0.5 x largest))\n"
           "  --ratio R             radius-edge bound, >= 2 (default 2)\n"
           "  --facet-angle A       minimum planar angle of interface triangles, <= 30 degrees (default 30)\n"
@@ -33,6 +33,8 @@ void cli_usage(FILE *f)
           "  --depth D             the octree of 8^D subregions that ranks (and the deterministic\n"
           "                        mode) refine in turn (default: from the ranks, threads and mesh size)\n"
           "  --report FILE.json    write the run report as JSON\n"
+          "  --trace FILE          under MPI: one line per task (rank, subregion, start, end, bytes in and\n"
+          "                        out, tets made), for replaying or simulating the run\n"
           "  --seed N              random seed (default 1)\n"
           "  --check               check the triangulation's validity before writing (slow)\n"
           "  --quiet               no progress or summary (errors only); --verbose: more detail\n"
@@ -115,6 +117,7 @@ static i2m_err_t parse_valued(const char *opt, const char *val, cli_options_t *o
   long long iv = 0;
   if (!strcmp(opt, "-o") || !strcmp(opt, "--output")) o->output = val;
   else if (!strcmp(opt, "--report")) o->report = val;
+  else if (!strcmp(opt, "--trace")) o->trace = val;
   else if (!strcmp(opt, "--delta")) {
     I2M_CALL(parse_double(opt, val, &p->delta));
     I2M_CHECK(p->delta > 0, I2M_ERR_ARG, "--delta must be a positive length in mm (got %s)", val);

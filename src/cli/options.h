@@ -7,7 +7,7 @@
 #define I2M_MAX_LIST 64
 
 typedef struct {
-  const char *input, *output, *report;
+  const char *input, *output, *report, *trace;
   i2m_refine_params_t params;
   i2m_label_size_t label_sizes[I2M_MAX_LIST];
   i2m_region_t regions[I2M_MAX_LIST];

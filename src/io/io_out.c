@@ -165,6 +165,7 @@ i2m_format_t i2m_format_from_path(const char *path)
   if (strcasecmp(dot, ".vtu") == 0) return I2M_FORMAT_VTU;
   if (strcasecmp(dot, ".mesh") == 0) return I2M_FORMAT_MEDIT;
   if (strcasecmp(dot, ".msh") == 0) return I2M_FORMAT_GMSH;
+  if (strcasecmp(dot, ".pvtu") == 0) return I2M_FORMAT_PVTU;
   return I2M_FORMAT_UNKNOWN;
 }
 
@@ -189,7 +190,7 @@ static i2m_err_t check_mesh(const i2m_tetmesh_t *m, const char *path)
 i2m_err_t i2m_mesh_check_writable(const char *path)
 {
   I2M_CHECK(i2m_format_from_path(path) != I2M_FORMAT_UNKNOWN, I2M_ERR_ARG,
-            "%s: unknown output format; use a .vtu, .mesh or .msh file name", path);
+            "%s: unknown output format; use a .vtu, .pvtu, .mesh or .msh file name", path);
   struct stat st;
   if (stat(path, &st) == 0) {
     I2M_CHECK(!S_ISDIR(st.st_mode), I2M_ERR_IO, "%s: is a directory, not an output file", path);
@@ -215,7 +216,7 @@ i2m_err_t i2m_mesh_write(const i2m_tetmesh_t *m, const char *path)
 {
   I2M_CHECK(path && *path, I2M_ERR_ARG, "empty output file name");
   i2m_format_t fmt = i2m_format_from_path(path);
-  I2M_CHECK(fmt != I2M_FORMAT_UNKNOWN, I2M_ERR_ARG,
+  I2M_CHECK(fmt != I2M_FORMAT_UNKNOWN && fmt != I2M_FORMAT_PVTU, I2M_ERR_ARG,
             "%s: unknown mesh format (expected a .vtu, .mesh or .msh file name)", path);
   I2M_CALL(check_mesh(m, path));
   if (fmt == I2M_FORMAT_VTU) return io_write_vtu(m, path);

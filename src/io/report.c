@@ -70,6 +70,19 @@ void i2m_report_print(FILE *f, const i2m_report_t *r)
               g->idle_seconds);
     }
   }
+  if (r->dist) {
+    const i2m_dist_report_t *d = r->dist;
+    fprintf(f, "  ranks        %d, octree depth %d (%d subregions)%s: %lld tasks (%lld wide), %lld submeshes moved, %.3g MB (%.3g bytes per output tet), %.2f s\n",
+            d->ranks, d->depth, 1 << (3 * d->depth), d->deterministic ? ", deterministic" : "", (long long)d->tasks,
+            (long long)d->wide_tasks, (long long)d->tiles_moved, (double)d->bytes / 1048576.0,
+            r->nt ? (double)d->bytes / (double)r->nt : 0.0, d->fine_seconds);
+    for (int k = 0; k < d->ranks; k++) {
+      const i2m_rank_figures_t *g = &d->rank[k];
+      fprintf(f, "    rank %-4d  preprocess %.2f s, meshing %.2f s, communication %.2f s, idle %.2f s; %lld tasks, %lld insertions, %lld tets, %lld submeshes in, %lld out (%lld while refining), peak %.0f MB\n",
+              k, g->preprocess, g->meshing, g->comm, g->idle, (long long)g->tasks, (long long)g->insertions, (long long)g->tets,
+              (long long)g->tiles_in, (long long)g->tiles_out, (long long)g->answered_while_refining, g->peak_rss / 1048576.0);
+    }
+  }
   fprintf(f, "  memory       peak %.1f MB, %.0f bytes per output tet\n", (double)r->peak_rss / 1048576.0,
           r->nt ? (double)r->peak_rss / (double)r->nt : 0.0);
   if (q) {

@@ -9,7 +9,7 @@
 #define VTU_CHUNK 65536 /* values converted per reserve() */
 
 /* Writes one appended block: the UInt64 byte count, then the values produced by kind. */
-enum { VTU_POINTS, VTU_CONN, VTU_OFFSETS, VTU_TYPES, VTU_MAT32, VTU_MAT64 };
+enum { VTU_POINTS, VTU_CONN, VTU_OFFSETS, VTU_TYPES, VTU_MAT32, VTU_MAT64, VTU_GID };
 
 static size_t vtu_value_bytes(int kind)
 {
@@ -23,6 +23,7 @@ static size_t vtu_value_bytes(int kind)
 static int64_t vtu_count(const i2m_tetmesh_t *m, int kind)
 {
   if (kind == VTU_POINTS) return 3 * m->nv;
+  if (kind == VTU_GID) return m->nv;
   if (kind == VTU_CONN) return 4 * m->nt;
   return m->nt;
 }
@@ -50,6 +51,7 @@ static void vtu_block(io_out_t *o, const i2m_tetmesh_t *m, int kind)
       case VTU_OFFSETS: io_le64(p, (uint64_t)(4 * (i + 1))); break;
       case VTU_TYPES: *p = 10; break;
       case VTU_MAT32: io_le32(p, (uint32_t)(int32_t)m->tet_label[i]); break;
+      case VTU_GID: io_le64(p, (uint64_t)m->gid[i]); break;
       default: io_le64(p, (uint64_t)m->tet_label[i]); break;
       }
     }
@@ -62,9 +64,15 @@ i2m_err_t io_write_vtu(const i2m_tetmesh_t *m, const char *path)
   int wide = 0;
   for (int64_t t = 0; t < m->nt; t++)
     if (m->tet_label[t] < INT32_MIN || m->tet_label[t] > INT32_MAX) wide = 1;
-  int kinds[5] = {VTU_POINTS, VTU_CONN, VTU_OFFSETS, VTU_TYPES, wide ? VTU_MAT64 : VTU_MAT32};
-  uint64_t off[5], acc = 0;
-  for (int k = 0; k < 5; k++) {
+  return io_write_vtu_typed(m, path, wide);
+}
+
+i2m_err_t io_write_vtu_typed(const i2m_tetmesh_t *m, const char *path, int wide)
+{
+  int kinds[6] = {VTU_POINTS, VTU_CONN, VTU_OFFSETS, VTU_TYPES, wide ? VTU_MAT64 : VTU_MAT32, VTU_GID};
+  const int nk = m->gid ? 6 : 5; /* (a piece of a distributed mesh: its vertices' global ids) */
+  uint64_t off[6], acc = 0;
+  for (int k = 0; k < nk; k++) {
     off[k] = acc;
     acc += 8 + (uint64_t)vtu_count(m, kinds[k]) * vtu_value_bytes(kinds[k]);
   }
@@ -79,9 +87,15 @@ i2m_err_t io_write_vtu(const i2m_tetmesh_t *m, const char *path)
                 "      <Points>\n"
                 "        <DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\""
                 " format=\"appended\" offset=\"%llu\"/>\n"
-                "      </Points>\n"
-                "      <Cells>\n",
+                "      </Points>\n",
                 (long long)m->nv, (long long)m->nt, (unsigned long long)off[0]);
+  if (m->gid)
+    io_out_printf(&o,
+                  "      <PointData GlobalIds=\"GlobalNodeId\">\n"
+                  "        <DataArray type=\"Int64\" Name=\"GlobalNodeId\" format=\"appended\" offset=\"%llu\"/>\n"
+                  "      </PointData>\n",
+                  (unsigned long long)off[5]);
+  io_out_printf(&o, "      <Cells>\n");
   io_out_printf(&o,
                 "        <DataArray type=\"Int64\" Name=\"connectivity\" format=\"appended\""
                 " offset=\"%llu\"/>\n"
@@ -100,7 +114,7 @@ i2m_err_t io_write_vtu(const i2m_tetmesh_t *m, const char *path)
                 (unsigned long long)off[1], (unsigned long long)off[2],
                 (unsigned long long)off[3], wide ? "Int64" : "Int32",
                 (unsigned long long)off[4]);
-  for (int k = 0; k < 5; k++) vtu_block(&o, m, kinds[k]);
+  for (int k = 0; k < nk; k++) vtu_block(&o, m, kinds[k]);
   io_out_printf(&o, "\n  </AppendedData>\n</VTKFile>\n");
   return io_out_close(&o);
 }

@@ -12,7 +12,8 @@ static const int FACE_OUT[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
 static int64_t neighbour_label(const i2m_refine_t *r, uint32_t t, int i)
 {
   uint32_t n = r->dt->tn[4 * t + i];
-  return n >= I2M_DT_REMOTE ? 0 : r->img->label_value[tinfo(r->dt, n >> 2)->label];
+  if (n == I2M_DT_REMOTE) return r->img->label_value[dist_ghost_label(r, t, i)]; /* (another rank's tet) */
+  return n == I2M_DT_NONE ? 0 : r->img->label_value[tinfo(r->dt, n >> 2)->label];
 }
 
 /* The tet slots are cut into EXTRACT_CHUNKS fixed chunks: counted in parallel, offsets by
@@ -106,9 +107,13 @@ i2m_err_t i2m_refine_extract(const i2m_refine_t *r, i2m_tetmesh_t **out)
   int64_t nv = 0;
   for (uint32_t v = 0; v < nvs; v++) vmap[v] = used[v] ? (int32_t)nv++ : -1;
   I2M_CALL_GOTO(err, done, i2m_tetmesh_create(nv, ntet[EXTRACT_CHUNKS], ntri[EXTRACT_CHUNKS], &m));
+  if (dist_tracking(r)) I2M_CALL_GOTO(err, done, i2m_malloc((size_t)(nv ? nv : 1), sizeof *m->gid, &m->gid));
   I2M_OMP(omp parallel for schedule(static))
-  for (int64_t v = 0; v < (int64_t)nvs; v++)
-    if (vmap[v] >= 0) memcpy(m->xyz + 3 * (size_t)vmap[v], i2m_dt_xyz(dt, (uint32_t)v), 3 * sizeof(double));
+  for (int64_t v = 0; v < (int64_t)nvs; v++) {
+    if (vmap[v] < 0) continue;
+    memcpy(m->xyz + 3 * (size_t)vmap[v], i2m_dt_xyz(dt, (uint32_t)v), 3 * sizeof(double));
+    if (m->gid) m->gid[vmap[v]] = i2m_dt_gid(dt, (uint32_t)v);
+  }
   I2M_OMP(omp parallel for schedule(dynamic, 4))
   for (int c = 0; c < EXTRACT_CHUNKS; c++) extract_fill_chunk(r, vmap, m, c, ntet[c], ntri[c]);
   *out = m;

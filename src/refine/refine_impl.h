@@ -359,6 +359,8 @@ bool tiles_ball_fits(const i2m_refine_worker_t *w, const double c[3], double r2)
 static inline bool dist_tracking(const i2m_refine_t *r) { return r->sub != NULL; }
 i2m_err_t dist_note_tets(i2m_refine_worker_t *w, const uint32_t *t, uint32_t n);
 i2m_err_t dist_note_vertex(i2m_refine_worker_t *w, uint32_t v);
+/** The label index of the tet across face i of t, another rank's (i2m_refine_dist_ghosts). */
+uint16_t dist_ghost_label(const i2m_refine_t *r, uint32_t t, int i);
 
 /* worker.c */
 i2m_err_t worker_init(i2m_refine_worker_t *w, i2m_refine_t *r, uint32_t owner, bool locking);

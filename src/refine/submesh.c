@@ -37,6 +37,7 @@ typedef struct {
   i2m_gidx_t key[3]; /* the face's sorted global ids; key[0] = -1: empty */
   uint32_t face;     /* 4t + i of the local tet */
   int32_t cell;      /* the cell of the tet across it */
+  uint16_t ghost;    /* the label index of the tet across it (i2m_refine_dist_ghosts) */
 } rface_t;
 
 struct submesh {
@@ -210,6 +211,7 @@ static i2m_err_t make_remote(struct submesh *S, i2m_dt_t *dt, uint32_t t, int i,
   face_key(dt, t, i, f.key);
   f.face = 4 * t + (uint32_t)i;
   f.cell = cell;
+  f.ghost = 0;
   I2M_CALL(rf_put(S, f));
   dt->tn[4 * (size_t)t + i] = I2M_DT_REMOTE;
   vremote_add(S, dt, t, i, +1);
@@ -797,4 +799,38 @@ void i2m_refine_dist_resolve(i2m_refine_t *r, uint32_t id)
   for (int k = 0; k < 2; k++)
     for (uint32_t i = 0; i < n[k]; i++)
       if (lists[k][i].v == PACK_NONE) lists[k][i].v = id_find(r->sub, lists[k][i].gid);
+}
+
+/* ---- the labels across the faces of other ranks' (for extraction, pieces and fragments) ---- */
+
+size_t i2m_refine_dist_nfaces(const i2m_refine_t *r) { return r->sub ? r->sub->nrf : 0; }
+
+void i2m_refine_dist_faces(const i2m_refine_t *r, i2m_face_label_t *out)
+{
+  const struct submesh *S = r->sub;
+  size_t n = 0;
+  for (size_t h = 0; h < S->cap_rf; h++) {
+    const rface_t *f = &S->rf[h];
+    if (f->key[0] < 0) continue;
+    out[n++] = (i2m_face_label_t){{f->key[0], f->key[1], f->key[2]}, f->cell, tinfo(r->dt, f->face >> 2)->label};
+  }
+}
+
+int64_t i2m_refine_dist_ghosts(i2m_refine_t *r, const i2m_face_label_t *faces, size_t n)
+{
+  int64_t unknown = 0;
+  for (size_t k = 0; k < n; k++) {
+    rface_t *f = rf_find(r->sub, faces[k].key);
+    if (f) f->ghost = faces[k].label;
+    else unknown++;
+  }
+  return unknown;
+}
+
+uint16_t dist_ghost_label(const i2m_refine_t *r, uint32_t t, int i)
+{
+  i2m_gidx_t key[3];
+  face_key(r->dt, t, i, key);
+  const rface_t *f = rf_find(r->sub, key);
+  return f ? f->ghost : 0;
 }

@@ -31,5 +31,6 @@ void i2m_tetmesh_destroy(i2m_tetmesh_t **m)
   i2m_free(&(*m)->tet_label);
   i2m_free(&(*m)->tri);
   i2m_free(&(*m)->tri_label);
+  i2m_free(&(*m)->gid);
   i2m_free(m);
 }

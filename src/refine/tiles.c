@@ -210,6 +210,7 @@ void tiles_bind(i2m_refine_worker_t *w, uint32_t id, bool wide)
   w->ctx.zone = wide ? tl->wzone : tl->zone;
   w->ctx.block = !g->octree ? NULL : wide ? &tl->wblock : &tl->block;
   w->ctx.bounded = true;
+  w->ctx.locking = false; /* (zones instead of locks) */
   w->tile = tl;
   w->tile_id = id;
   w->tile_full = false;
@@ -622,6 +623,35 @@ static i2m_err_t sequential_pass(i2m_refine_t *r)
   g->nseq -= n0;
   w->st.seconds += i2m_wtime() - t0;
   return I2M_OK;
+}
+
+i2m_err_t i2m_refine_tiles_prepare(i2m_refine_t *r, const uint32_t *tiles, uint32_t n)
+{
+  tiling_t *g = r->tiling;
+  g->nactive = 0;
+  for (uint32_t i = 0; i < n; i++) {
+    tile_t *tl = &g->tile[tiles[i]];
+    compact_lists(r->dt, tl->q);
+    I2M_CALL(grant_tile(r, tl, tile_work(tl)));
+    g->active[g->nactive++] = tiles[i];
+  }
+  I2M_CALL(vgrid_reserve(&r->surf, r->dt->cap_v)); /* nobody grows the grids while tiles run */
+  return vgrid_reserve(&r->freev, r->dt->cap_v);
+}
+
+void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t *work, int64_t *wide, int64_t *tets)
+{
+  tile_t *tl = &r->tiling->tile[id];
+  compact_lists(r->dt, tl->q);
+  compact_lists(r->dt, tl->wq);
+  *work = (int64_t)tile_work(tl);
+  *wide = (int64_t)tile_wide_work(tl);
+  *tets = tl->ntets; /* (an estimate: stale entries are dropped when the list grows) */
+}
+
+void i2m_refine_tiling_cells(const i2m_refine_t *r, int32_t n[3])
+{
+  for (int a = 0; a < 3; a++) n[a] = r->tiling->cells.n[a];
 }
 
 /* ---- the octree's wide tasks ---- */

@@ -525,6 +525,46 @@ i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_t
   return err;
 }
 
+i2m_err_t i2m_threads_coarse(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep)
+{
+  const int T = team_size(o->threads > 0 ? o->threads : i2m_threads_default());
+  team_t tm;
+  memset(rep, 0, sizeof *rep);
+  I2M_CHECK(o->coarse_factor > 1, I2M_ERR_ARG, "the distributed level needs a coarse mesh: --coarse-factor must be above 1");
+  I2M_CHECK(atomic_exchange(&team_busy, 1) == 0, I2M_ERR_UNSUPPORTED, "one parallel refinement at a time per process");
+  i2m_err_t err = i2m_refine_set_workers(r, T);
+  if (err == I2M_OK) err = team_init(&tm, r, T, o->pin);
+  if (err != I2M_OK) {
+    atomic_store(&team_busy, 0);
+    return err;
+  }
+  const double t0 = i2m_wtime();
+  rep->deterministic = o->deterministic;
+  rep->depth = i2m_refine_depth(r);
+  i2m_refine_tiling_bound(r); /* (the octree's depth set: its zones bound the tets) */
+  i2m_refine_set_scale(r, o->coarse_factor);
+  if (o->deterministic) {
+    err = i2m_refine_tiling_begin(r);
+    if (err == I2M_OK) err = run_tiled(&tm, rep);
+  } else {
+    err = warm_up(r, T);
+    if (err == I2M_OK) err = run_phase(&tm, false);
+  }
+  i2m_refine_set_scale(r, 1.0);
+  if (err == I2M_OK) err = i2m_refine_octree_begin(r); /* every tet classified again into the octree's tiles */
+  if (err == I2M_OK) err = i2m_refine_tiling_prepare_classify(r);
+  if (err == I2M_OK) {
+    job_t jb = {&tm, JOB_CLASSIFY, NULL, 0, 0};
+    err = run_job(&tm, &jb);
+  }
+  if (err == I2M_OK) err = i2m_refine_tiling_collect(r);
+  rep->coarse_seconds = i2m_wtime() - t0;
+  report_fill(&tm, rep);
+  team_free(&tm);
+  atomic_store(&team_busy, 0);
+  return err;
+}
+
 void i2m_threads_report_free(i2m_threads_report_t *rep) { i2m_free(&rep->thread); }
 
 i2m_err_t i2m_threads_perturb_slivers(i2m_refine_t *r, const i2m_threads_opts_t *o, double bound,

@@ -1,0 +1,183 @@
+/* Dist layer: the parallel context (communicator, rank, size, threads, log prefix), with MPI
+ * or, without MPI or without a launcher, a stand-in of one process. */
+#include "i2m/dist.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Was the process started by an MPI launcher (the variables mpirun, mpiexec, srun set)? */
+static bool launched(void)
+{
+  const char *force = getenv("I2M_MPI");
+  if (force && (force[0] == '0' || force[0] == '1')) return force[0] == '1';
+  static const char *const vars[] = {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMI_RANK", "PMIX_RANK", "MPI_LOCALNRANKS",
+                                     "MV2_COMM_WORLD_SIZE"};
+  for (size_t k = 0; k < sizeof vars / sizeof *vars; k++)
+    if (getenv(vars[k])) return true;
+  return false;
+}
+
+static void set_prefix(i2m_par_t *par)
+{
+  if (par->size > 1) snprintf(par->prefix, sizeof par->prefix, "[rank %d] ", par->rank);
+  else par->prefix[0] = '\0';
+}
+
+#if I2M_HAVE_MPI
+
+static MPI_Comm abort_comm = MPI_COMM_NULL; /* (for i2m_abort's hook: a process-wide handle) */
+
+static void abort_hook(void)
+{
+  if (abort_comm != MPI_COMM_NULL) MPI_Abort(abort_comm, 3);
+}
+
+i2m_err_t i2m_par_init(int *argc, char ***argv, i2m_par_t *par)
+{
+  memset(par, 0, sizeof *par);
+  par->comm = MPI_COMM_NULL;
+  par->size = par->local_size = 1;
+  if (!launched()) return I2M_OK;
+  int provided = 0;
+  I2M_CHECK(MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided) == MPI_SUCCESS, I2M_ERR_UNSUPPORTED,
+            "MPI_Init_thread failed");
+  par->mpi = true;
+  if (provided < MPI_THREAD_FUNNELED) {
+    MPI_Finalize();
+    par->mpi = false;
+    return I2M_ERROR(I2M_ERR_UNSUPPORTED,
+                     "the MPI library gives threads level %d, below MPI_THREAD_FUNNELED (%d): i2m's worker threads need it; "
+                     "use an MPI built with thread support",
+                     provided, MPI_THREAD_FUNNELED);
+  }
+  MPI_Comm_dup(MPI_COMM_WORLD, &par->comm);
+  MPI_Comm_rank(par->comm, &par->rank);
+  MPI_Comm_size(par->comm, &par->size);
+  MPI_Comm local;
+  MPI_Comm_split_type(par->comm, MPI_COMM_TYPE_SHARED, par->rank, MPI_INFO_NULL, &local);
+  MPI_Comm_rank(local, &par->local_rank);
+  MPI_Comm_size(local, &par->local_size);
+  MPI_Comm_free(&local);
+  MPI_Comm_set_errhandler(par->comm, MPI_ERRORS_ARE_FATAL);
+  set_prefix(par);
+  abort_comm = par->comm;
+  i2m_abort_set_hook(abort_hook);
+  return I2M_OK;
+}
+
+void i2m_par_finalize(i2m_par_t *par)
+{
+  if (!par->mpi) return;
+  abort_comm = MPI_COMM_NULL;
+  if (par->comm != MPI_COMM_NULL) MPI_Comm_free(&par->comm);
+  MPI_Finalize();
+  par->mpi = false;
+}
+
+i2m_err_t i2m_par_agree(const i2m_par_t *par, i2m_err_t err)
+{
+  if (!par->mpi) return err;
+  int mine = err != I2M_OK ? par->rank : par->size, first = par->size;
+  MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, par->comm);
+  if (first == par->size) return I2M_OK;
+  char msg[1024];
+  int code = (int)err;
+  if (par->rank == first) snprintf(msg, sizeof msg, "%s", i2m_error_message());
+  MPI_Bcast(&code, 1, MPI_INT, first, par->comm);
+  MPI_Bcast(msg, (int)sizeof msg, MPI_CHAR, first, par->comm);
+  msg[sizeof msg - 1] = '\0';
+  if (par->size > 1) return i2m_error_set((i2m_err_t)code, __FILE__, __LINE__, "[rank %d] %s", first, msg);
+  return i2m_error_set((i2m_err_t)code, __FILE__, __LINE__, "%s", msg);
+}
+
+void i2m_par_abort(const i2m_par_t *par, int code)
+{
+  fflush(stdout);
+  fflush(stderr);
+  if (par->mpi) MPI_Abort(par->comm, code);
+  exit(code);
+}
+
+double i2m_par_max(const i2m_par_t *par, double x)
+{
+  double y = x;
+  if (par->mpi) MPI_Allreduce(&x, &y, 1, MPI_DOUBLE, MPI_MAX, par->comm);
+  return y;
+}
+
+double i2m_par_sum(const i2m_par_t *par, double x)
+{
+  double y = x;
+  if (par->mpi) MPI_Allreduce(&x, &y, 1, MPI_DOUBLE, MPI_SUM, par->comm);
+  return y;
+}
+
+void i2m_par_sum_i64(const i2m_par_t *par, int64_t *x, int n)
+{
+  if (par->mpi) MPI_Allreduce(MPI_IN_PLACE, x, n, MPI_INT64_T, MPI_SUM, par->comm);
+}
+
+int i2m_par_bcast_int(const i2m_par_t *par, int x)
+{
+  if (par->mpi) MPI_Bcast(&x, 1, MPI_INT, 0, par->comm);
+  return x;
+}
+
+void i2m_par_barrier(const i2m_par_t *par)
+{
+  if (par->mpi) MPI_Barrier(par->comm);
+}
+
+#else /* no MPI: one process */
+
+i2m_err_t i2m_par_init(int *argc, char ***argv, i2m_par_t *par)
+{
+  (void)argc;
+  (void)argv;
+  memset(par, 0, sizeof *par);
+  par->size = par->local_size = 1;
+  par->comm = 0;
+  I2M_CHECK(!launched() || (getenv("OMPI_COMM_WORLD_SIZE") ? atoi(getenv("OMPI_COMM_WORLD_SIZE")) : getenv("PMI_SIZE") ? atoi(getenv("PMI_SIZE")) : 1) <= 1,
+            I2M_ERR_UNSUPPORTED, "started as one of several MPI processes, but this i2m was built without MPI (make with mpicc)");
+  set_prefix(par);
+  return I2M_OK;
+}
+
+void i2m_par_finalize(i2m_par_t *par) { (void)par; }
+i2m_err_t i2m_par_agree(const i2m_par_t *par, i2m_err_t err)
+{
+  (void)par;
+  return err;
+}
+void i2m_par_abort(const i2m_par_t *par, int code)
+{
+  (void)par;
+  fflush(stdout);
+  fflush(stderr);
+  exit(code);
+}
+double i2m_par_max(const i2m_par_t *par, double x)
+{
+  (void)par;
+  return x;
+}
+double i2m_par_sum(const i2m_par_t *par, double x)
+{
+  (void)par;
+  return x;
+}
+void i2m_par_sum_i64(const i2m_par_t *par, int64_t *x, int n)
+{
+  (void)par;
+  (void)x;
+  (void)n;
+}
+int i2m_par_bcast_int(const i2m_par_t *par, int x)
+{
+  (void)par;
+  return x;
+}
+void i2m_par_barrier(const i2m_par_t *par) { (void)par; }
+
+#endif

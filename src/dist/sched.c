@@ -1,0 +1,266 @@
+/* Dist layer: the task scheduler of rank 0 (see sched.h).  No MPI here. */
+#include "sched.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+i2m_err_t sched_init(sched_t *S, const int32_t n[3], int nranks)
+{
+  memset(S, 0, sizeof *S);
+  for (int a = 0; a < 3; a++) S->n[a] = n[a];
+  S->ncells = (uint32_t)n[0] * (uint32_t)n[1] * (uint32_t)n[2];
+  S->nranks = nranks;
+  const size_t c = S->ncells;
+  i2m_err_t err = I2M_OK;
+  if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->work, &S->work);
+  if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->wide, &S->wide);
+  if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->tets, &S->tets);
+  if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->holder, &S->holder); /* rank 0 holds the coarse mesh */
+  if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->home, &S->home);
+  if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->lock, &S->lock);
+  if (err == I2M_OK) err = i2m_calloc((size_t)nranks, sizeof *S->inflight, &S->inflight);
+  if (err == I2M_OK) err = i2m_calloc((size_t)nranks, sizeof *S->waiting, &S->waiting);
+  if (err == I2M_OK) err = i2m_calloc((size_t)nranks, sizeof *S->done, &S->done);
+  if (err != I2M_OK) sched_free(S);
+  return err;
+}
+
+void sched_free(sched_t *S)
+{
+  i2m_free(&S->work);
+  i2m_free(&S->wide);
+  i2m_free(&S->tets);
+  i2m_free(&S->holder);
+  i2m_free(&S->home);
+  i2m_free(&S->lock);
+  i2m_free(&S->inflight);
+  i2m_free(&S->waiting);
+  i2m_free(&S->done);
+}
+
+static void coords(const sched_t *S, uint32_t c, int32_t x[3])
+{
+  x[0] = (int32_t)(c % (uint32_t)S->n[0]);
+  x[1] = (int32_t)(c / (uint32_t)S->n[0] % (uint32_t)S->n[1]);
+  x[2] = (int32_t)(c / (uint32_t)S->n[0] / (uint32_t)S->n[1]);
+}
+
+/* The position of cell c on a Morton (Z-order) curve: its coordinates' bits interleaved. */
+static uint64_t morton(const sched_t *S, uint32_t c)
+{
+  int32_t x[3];
+  coords(S, c, x);
+  uint64_t key = 0;
+  for (int b = 0; b < 21; b++)
+    for (int a = 0; a < 3; a++) key |= (uint64_t)((x[a] >> b) & 1) << (3 * b + a);
+  return key;
+}
+
+static int cmp_u64(const void *a, const void *b)
+{
+  const uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+  return (x > y) - (x < y);
+}
+
+void sched_partition(sched_t *S)
+{
+  uint64_t *order = NULL;
+  if (i2m_malloc(S->ncells, sizeof *order, &order) != I2M_OK) return; /* (homes stay rank 0's) */
+  int64_t total = 0;
+  for (uint32_t c = 0; c < S->ncells; c++) {
+    order[c] = morton(S, c) << 32 | c; /* (morton < 2^30 for the depths allowed) */
+    total += S->tets[c] + 1;
+  }
+  qsort(order, S->ncells, sizeof *order, cmp_u64);
+  int64_t acc = 0;
+  for (uint32_t i = 0; i < S->ncells; i++) {
+    const uint32_t c = (uint32_t)order[i];
+    int q = (int)((acc + (S->tets[c] + 1) / 2) * S->nranks / total); /* (its middle decides) */
+    S->home[c] = q < S->nranks ? q : S->nranks - 1;
+    acc += S->tets[c] + 1;
+  }
+  i2m_free(&order);
+}
+
+uint32_t sched_block(const sched_t *S, sched_task_t t, uint32_t *cells)
+{
+  const int rad = t.wide ? 2 : 1;
+  int32_t c[3], lo[3], hi[3];
+  coords(S, t.cell, c);
+  for (int a = 0; a < 3; a++) {
+    lo[a] = c[a] - rad < 0 ? 0 : c[a] - rad;
+    hi[a] = c[a] + rad >= S->n[a] ? S->n[a] - 1 : c[a] + rad;
+  }
+  uint32_t n = 0;
+  for (int32_t k = lo[2]; k <= hi[2]; k++)
+    for (int32_t j = lo[1]; j <= hi[1]; j++)
+      for (int32_t i = lo[0]; i <= hi[0]; i++)
+        cells[n++] = ((uint32_t)k * (uint32_t)S->n[1] + (uint32_t)j) * (uint32_t)S->n[0] + (uint32_t)i;
+  return n;
+}
+
+static bool has_work(const sched_t *S, sched_task_t t) { return (t.wide ? S->wide[t.cell] : S->work[t.cell]) > 0; }
+
+bool sched_runnable(const sched_t *S, sched_task_t t)
+{
+  if (!has_work(S, t)) return false;
+  uint32_t cells[125];
+  const uint32_t n = sched_block(S, t, cells);
+  for (uint32_t i = 0; i < n; i++)
+    if (S->lock[cells[i]]) return false;
+  return true;
+}
+
+void sched_give(sched_t *S, int rank, sched_task_t t)
+{
+  uint32_t cells[125];
+  const uint32_t n = sched_block(S, t, cells);
+  for (uint32_t i = 0; i < n; i++) {
+    S->lock[cells[i]]++;
+    S->holder[cells[i]] = rank;
+  }
+  S->inflight[rank]++;
+  S->tasks_given++;
+  S->wide_given += t.wide;
+}
+
+/* Tets of task t's block that `rank` would have to fetch. */
+static int64_t to_move(const sched_t *S, int rank, sched_task_t t)
+{
+  uint32_t cells[125];
+  const uint32_t n = sched_block(S, t, cells);
+  int64_t m = 0;
+  for (uint32_t i = 0; i < n; i++)
+    if (S->holder[cells[i]] != rank) m += S->tets[cells[i]] + 1;
+  return m;
+}
+
+uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
+{
+  uint32_t k = 0;
+  while (k < max) {
+    sched_task_t best = {0, false};
+    int best_home = 0;
+    int64_t best_move = INT64_MAX, best_work = -1;
+    for (uint32_t c = 0; c < S->ncells; c++) { /* the cheapest to fetch, its share first, the busiest */
+      const sched_task_t t = {c, false};
+      if (!sched_runnable(S, t)) continue;
+      const int h = S->home[c] == rank;
+      const int64_t m = to_move(S, rank, t);
+      if (m < best_move || (m == best_move && (h > best_home || (h == best_home && S->work[c] > best_work)))) {
+        best = t;
+        best_home = h;
+        best_move = m;
+        best_work = S->work[c];
+      }
+    }
+    if (best_work < 0 && k == 0) /* no normal task: a wide one, alone */
+      for (uint32_t c = 0; c < S->ncells; c++) {
+        const sched_task_t t = {c, true};
+        if (!sched_runnable(S, t)) continue;
+        sched_give(S, rank, t);
+        out[0] = t;
+        return 1;
+      }
+    if (best_work < 0 || (k > 0 && best_move > 0)) break; /* (one task that fetches data per batch, first) */
+    sched_give(S, rank, best);
+    out[k++] = best;
+  }
+  return k;
+}
+
+void sched_feedback(sched_t *S, int rank, const sched_task_t *tasks, uint32_t ntasks, const sched_cell_t *cells,
+                    uint32_t ncells)
+{
+  for (uint32_t i = 0; i < ntasks; i++) {
+    uint32_t b[125];
+    const uint32_t n = sched_block(S, tasks[i], b);
+    for (uint32_t j = 0; j < n; j++) S->lock[b[j]]--;
+    S->inflight[rank]--;
+  }
+  for (uint32_t i = 0; i < ncells; i++) {
+    const sched_cell_t *c = &cells[i];
+    S->work[c->cell] = c->work;
+    S->wide[c->cell] = c->wide;
+    S->tets[c->cell] = c->tets;
+  }
+}
+
+bool sched_busy(const sched_t *S)
+{
+  for (int r = 0; r < S->nranks; r++)
+    if (S->inflight[r]) return true;
+  for (uint32_t c = 0; c < S->ncells; c++)
+    if (S->work[c] || S->wide[c]) return true;
+  return false;
+}
+
+int sched_best_rank(const sched_t *S, sched_task_t t)
+{
+  uint32_t cells[125];
+  const uint32_t n = sched_block(S, t, cells);
+  int best = 0;
+  int64_t most = -1;
+  for (int r = 0; r < S->nranks; r++) {
+    int64_t held = 0;
+    for (uint32_t i = 0; i < n; i++)
+      if (S->holder[cells[i]] == r) held += S->tets[cells[i]] + 1;
+    if (held > most) {
+      most = held;
+      best = r;
+    }
+  }
+  return best;
+}
+
+typedef struct {
+  int64_t work;
+  uint32_t cell;
+} by_work_t;
+
+static int cmp_by_work(const void *a, const void *b)
+{
+  const by_work_t *x = a, *y = b;
+  if (x->work != y->work) return x->work > y->work ? -1 : 1;
+  return (x->cell > y->cell) - (x->cell < y->cell);
+}
+
+uint32_t sched_phase(sched_t *S, int color, sched_task_t *out, int *owner)
+{
+  by_work_t *list = NULL;
+  int64_t *load = NULL;
+  if (i2m_malloc(S->ncells, sizeof *list, &list) != I2M_OK || i2m_calloc((size_t)S->nranks, sizeof *load, &load) != I2M_OK) {
+    i2m_free(&list);
+    return UINT32_MAX;
+  }
+  uint32_t n = 0;
+  for (uint32_t c = 0; c < S->ncells; c++) {
+    int32_t x[3];
+    coords(S, c, x);
+    if (x[0] % 3 + 3 * (x[1] % 3) + 9 * (x[2] % 3) == color && S->work[c] > 0) list[n++] = (by_work_t){S->work[c], c};
+  }
+  qsort(list, n, sizeof *list, cmp_by_work);
+  for (uint32_t k = 0; k < n; k++) { /* the busiest first, each to its holder unless it has most */
+    const sched_task_t t = {list[k].cell, false};
+    int r = sched_best_rank(S, t);
+    int lightest = 0;
+    for (int q = 1; q < S->nranks; q++)
+      if (load[q] < load[lightest]) lightest = q;
+    if (load[r] > load[lightest] + list[k].work) r = lightest; /* (data moves rather than a rank waits) */
+    load[r] += list[k].work;
+    out[k] = t;
+    owner[k] = r;
+    sched_give(S, r, t);
+  }
+  i2m_free(&list);
+  i2m_free(&load);
+  return n;
+}
+
+uint32_t sched_wide_list(const sched_t *S, uint32_t *out)
+{
+  uint32_t n = 0;
+  for (uint32_t c = 0; c < S->ncells; c++)
+    if (S->wide[c] > 0) out[n++] = c;
+  return n;
+}

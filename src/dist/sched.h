@@ -1,0 +1,93 @@
+/* Dist layer internals: the task scheduler of rank 0 (hybrid paper, §3.2 and Fig. 2), pure
+ * bookkeeping without MPI, so that its invariants are unit-tested on their own.
+ *
+ * The octree's 8^d cells are the subregions.  A task is a cell: it refines the cell's bad
+ * elements inside a zone that reaches half a cell into its neighbours, reading and changing
+ * only the tets of its block (the cell and its 26 neighbours: the first buffer zone); a wide
+ * task reads a block of 5^3 cells.  The scheduler never runs two tasks whose blocks overlap
+ * (centres at least 3 cells apart: the second buffer zone), so tasks in flight never
+ * synchronise.  It knows, from the feedback after each task, the bad elements of every cell
+ * (normal and wide) and the tets it holds, and where every cell's submesh lives (the Location
+ * array): a task goes to the rank that asks, the one whose blocks' submeshes it already holds
+ * first; its block's cells then belong to that rank.  Ranks that ask while nothing can be
+ * given wait in a list; the run ends exactly when no cell has work and no task is in flight. */
+#ifndef I2M_DIST_SCHED_H
+#define I2M_DIST_SCHED_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "i2m/base.h"
+
+/** A task: a cell (wide: its wide task, a block of 5^3 cells). */
+typedef struct {
+  uint32_t cell;
+  bool wide;
+} sched_task_t;
+
+/** What a rank tells the scheduler about one cell after a task. */
+typedef struct {
+  uint32_t cell;
+  int64_t work, wide, tets; /* bad elements, of them for the wide task, tets held */
+} sched_cell_t;
+
+typedef struct {
+  int32_t n[3];      /* cells along each axis */
+  uint32_t ncells;
+  int nranks;
+  int64_t *work;     /* [ncells] bad elements for the cell's task */
+  int64_t *wide;     /* [ncells] bad elements for its wide task */
+  int64_t *tets;     /* [ncells] tets of its submesh */
+  int32_t *holder;   /* [ncells] the rank that holds its submesh (Location) */
+  int32_t *home;     /* [ncells] the rank whose share of the block the cell is in (sched_partition) */
+  uint32_t *lock;    /* [ncells] tasks in flight whose block holds it */
+  int32_t *inflight; /* [nranks] tasks each rank is running */
+  bool *waiting;     /* [nranks] ranks on the waiting list */
+  bool *done;        /* [nranks] ranks told to stop */
+  int64_t tasks_given, wide_given;
+} sched_t;
+
+i2m_err_t sched_init(sched_t *S, const int32_t n[3], int nranks);
+
+/** Cuts the cells into one share per rank (home), contiguous along a Morton curve, each with
+ *  about the same number of tets (the coarse mesh's: where the fine mesh will be dense too). */
+void sched_partition(sched_t *S);
+void sched_free(sched_t *S);
+
+/** The cells of a task's block (radius 1, or 2 for a wide task), clipped to the grid:
+ *  cells[] gets them (room for 125), returns their number. */
+uint32_t sched_block(const sched_t *S, sched_task_t t, uint32_t *cells);
+
+/** Can task t run now (it has work, and no cell of its block is locked)? */
+bool sched_runnable(const sched_t *S, sched_task_t t);
+
+/** Up to max tasks for `rank` (asynchronous mode): cells with work whose blocks are free and
+ *  do not overlap each other: cells of its share first, those whose block it holds most of
+ *  first (then the busiest); then others' (the data follows the work).  Their blocks are
+ *  locked and now belong to the rank.  Returns their number (0: nothing can run now).  A wide
+ *  task comes alone. */
+uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out);
+
+/** The feedback of a rank's tasks: their blocks unlocked, the cells' figures updated. */
+void sched_feedback(sched_t *S, int rank, const sched_task_t *tasks, uint32_t ntasks, const sched_cell_t *cells,
+                    uint32_t ncells);
+
+/** Is there work left anywhere, or a task in flight? */
+bool sched_busy(const sched_t *S);
+
+/** The deterministic mode's phase: the tasks of one colour (the cells whose coordinates
+ *  modulo 3 make it) that have work, each assigned (owner[k]) to the rank that holds most of
+ *  its block, balanced by work; their blocks locked and given to their ranks.  Returns their
+ *  number. */
+uint32_t sched_phase(sched_t *S, int color, sched_task_t *out, int *owner);
+
+/** The deterministic mode's wide pass: the cells with wide work, in order. */
+uint32_t sched_wide_list(const sched_t *S, uint32_t *out);
+
+/** A task given to a rank (its block locked and now the rank's). */
+void sched_give(sched_t *S, int rank, sched_task_t t);
+
+/** The rank that holds the most tets of task t's block. */
+int sched_best_rank(const sched_t *S, sched_task_t t);
+
+#endif

@@ -1,0 +1,74 @@
+/* io layer: a distributed mesh written as pieces (.pvtu: every rank writes its own .vtu, rank
+ * 0 the file that names them, no gather) or stitched on rank 0 into one file. */
+#include "io_impl.h"
+
+#include <string.h>
+
+/* NAME.pvtu -> NAME_<rank>.vtu (path) and its name without the directory (source). */
+static i2m_err_t piece_names(const char *pvtu, int rank, char *path, size_t np, char *source, size_t ns)
+{
+  const size_t n = strlen(pvtu);
+  I2M_CHECK(n > 5 && n + 24 < np, I2M_ERR_ARG, "%s: bad piece file name", pvtu);
+  snprintf(path, np, "%.*s_%d.vtu", (int)(n - 5), pvtu, rank);
+  const char *slash = strrchr(path, '/');
+  snprintf(source, ns, "%s", slash ? slash + 1 : path);
+  return I2M_OK;
+}
+
+static i2m_err_t write_pvtu(const char *path, int pieces, int wide)
+{
+  io_out_t o;
+  I2M_CALL(io_out_open(&o, path));
+  io_out_printf(&o,
+                "<?xml version=\"1.0\"?>\n"
+                "<VTKFile type=\"PUnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n"
+                "  <PUnstructuredGrid GhostLevel=\"0\">\n"
+                "    <PPointData GlobalIds=\"GlobalNodeId\">\n"
+                "      <PDataArray type=\"Int64\" Name=\"GlobalNodeId\"/>\n"
+                "    </PPointData>\n"
+                "    <PCellData Scalars=\"material\">\n"
+                "      <PDataArray type=\"%s\" Name=\"material\"/>\n"
+                "    </PCellData>\n"
+                "    <PPoints>\n"
+                "      <PDataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"/>\n"
+                "    </PPoints>\n",
+                wide ? "Int64" : "Int32");
+  for (int q = 0; q < pieces; q++) {
+    char p[4096], src[4096];
+    I2M_CALL(piece_names(path, q, p, sizeof p, src, sizeof src));
+    io_out_printf(&o, "    <Piece Source=\"%s\"/>\n", src);
+  }
+  io_out_printf(&o, "  </PUnstructuredGrid>\n</VTKFile>\n");
+  return io_out_close(&o);
+}
+
+/* Does a label need 64 bits (on any rank: the pieces must agree on the type)? */
+static int wide_labels(const i2m_par_t *par, const i2m_tetmesh_t *m)
+{
+  int wide = 0;
+  for (int64_t t = 0; t < m->nt; t++)
+    if (m->tet_label[t] < INT32_MIN || m->tet_label[t] > INT32_MAX) wide = 1;
+  return i2m_par_max(par, wide) > 0;
+}
+
+i2m_err_t i2m_mesh_write_par(const i2m_par_t *par, i2m_tetmesh_t **m, const char *path)
+{
+  if (i2m_format_from_path(path) == I2M_FORMAT_PVTU) {
+    char piece[4096], source[4096];
+    i2m_err_t err = piece_names(path, par->rank, piece, sizeof piece, source, sizeof source);
+    const int wide = wide_labels(par, *m);
+    if (err == I2M_OK) err = io_write_vtu_typed(*m, piece, wide);
+    err = i2m_par_agree(par, err);
+    if (err == I2M_OK && par->rank == 0) err = write_pvtu(path, par->size, wide);
+    return i2m_par_agree(par, err);
+  }
+  if (par->size > 1) {
+    I2M_CALL(i2m_par_agree(par, i2m_dist_gather_mesh(par, m)));
+  }
+  i2m_err_t err = I2M_OK;
+  if (par->rank == 0) {
+    i2m_free(&(*m)->gid); /* (one file: the ids were for stitching) */
+    err = i2m_mesh_write(*m, path);
+  }
+  return i2m_par_agree(par, err);
+}

@@ -699,8 +699,8 @@ static inline uint32_t first_face_from(uint32_t mask, uint32_t r)
 }
 
 /* One step of the walk decided face by face, exactly where the floating-point sign is not
- * certain: the next tet (through the first face in the order r, r + 1, ... that p lies
- * beyond), or I2M_DT_NONE when p is in t. */
+ * certain: the neighbour word of the first face in the order r, r + 1, ... that p lies beyond
+ * (I2M_DT_REMOTE: another rank's), or I2M_DT_NONE when p is in t. */
 static I2M_NOINLINE uint32_t walk_step_exact(const i2m_dt_t *dt, uint32_t t, uint32_t prev, const double *p,
                                              const double o[4], double bound, uint32_t r)
 {
@@ -708,8 +708,8 @@ static I2M_NOINLINE uint32_t walk_step_exact(const i2m_dt_t *dt, uint32_t t, uin
   for (uint32_t k = 0; k < 4; k++) {
     uint32_t i = (r + k) & 3;
     uint32_t n = dt->tn[4 * t + i];
-    if (n >= I2M_DT_REMOTE || (n >> 2) == prev) continue;
-    if (beyond_face(dt, v, i, p, o[i], bound)) return n >> 2;
+    if (n == I2M_DT_NONE || (n >> 2) == prev) continue;
+    if (beyond_face(dt, v, i, p, o[i], bound)) return n;
   }
   return I2M_DT_NONE;
 }
@@ -729,22 +729,23 @@ uint32_t i2m_dt_locate(i2m_dt_ctx_t *ctx, const double p[3], uint32_t start)
     const uint32_t r = rng_next(&rng);
     uint32_t open = 0, beyond = 0, unsure = 0;
     for (uint32_t i = 0; i < 4; i++) {
-      open |= (uint32_t)((tn[i] < I2M_DT_REMOTE) & ((tn[i] >> 2) != prev)) << i;
+      open |= (uint32_t)((tn[i] != I2M_DT_NONE) & ((tn[i] >> 2) != prev)) << i;
       beyond |= (uint32_t)(o[i] < -bound) << i;
       unsure |= (uint32_t)(fabs(o[i]) <= bound) << i;
     }
-    uint32_t next;
+    uint32_t word; /* the neighbour across the face taken */
     if (I2M_LIKELY(!(unsure & open))) {
       const uint32_t i = first_face_from(beyond & open, r);
-      next = i < 4 ? tn[i] >> 2 : I2M_DT_NONE;
+      word = i < 4 ? tn[i] : I2M_DT_NONE;
     } else {
-      next = walk_step_exact(dt, t, prev, p, o, bound, r);
+      word = walk_step_exact(dt, t, prev, p, o, bound, r);
     }
     ctx->n_walk_steps++;
-    if (next == I2M_DT_NONE) return t;
-    if (ctx->block && !i2m_dt_block_holds(dt, ctx->block, next)) return I2M_DT_NONE; /* (a task holds its block only) */
+    if (word == I2M_DT_NONE) return t;
+    /* a task holds its block only (another rank's side, or beyond the block here: the same) */
+    if (word == I2M_DT_REMOTE || (ctx->block && !i2m_dt_block_holds(dt, ctx->block, word >> 2))) return I2M_DT_NONE;
     prev = t;
-    t = next;
+    t = word >> 2;
   }
 }
 

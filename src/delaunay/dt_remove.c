@@ -28,6 +28,8 @@ struct i2m_dt_removal {
   uint32_t nfill, cap_fill;
   uint32_t *slot;         /* [local tet] -> main slot (I2M_DT_NONE if not in the fill) */
   uint32_t cap_slot;
+  uint32_t *link;         /* the link vertices, in the order of their global ids */
+  uint32_t nlink, cap_link;
 };
 
 void removal_free(struct i2m_dt_removal **rmp)
@@ -43,6 +45,7 @@ void removal_free(struct i2m_dt_removal **rmp)
   i2m_free(&rm->lf);
   i2m_free(&rm->fill);
   i2m_free(&rm->slot);
+  i2m_free(&rm->link);
   i2m_free(rmp);
 }
 
@@ -197,7 +200,11 @@ static i2m_dt_status_t local_triangulate(i2m_dt_ctx_t *ctx, struct i2m_dt_remova
     rm->vmark_l[s] = b;
     rm->lmap[b] = b;
   }
-  uint32_t hint = 0;
+  /* the link vertices, inserted in the order of their global ids: the new tets (their vertex
+   * order, their order) are then a function of the star, not of the tet the search began
+   * with, which differs between ranks that hold the same star */
+  rm->nlink = 0;
+  if (ctx_grow_u32(&rm->link, &rm->cap_link, 4 * ctx->ncav) != I2M_OK) return I2M_DT_FULL;
   for (uint32_t k = 0; k < ctx->ncav; k++) {
     const uint32_t *tv = dt->tv + 4 * (size_t)ctx->cav[k];
     for (int i = 0; i < 4; i++) {
@@ -205,15 +212,26 @@ static i2m_dt_status_t local_triangulate(i2m_dt_ctx_t *ctx, struct i2m_dt_remova
       if (w == v) continue;
       uint32_t s = vmap_slot(rm, w);
       if (rm->vmark_s[s] == rm->vstamp) continue;
-      uint32_t lw = I2M_DT_NONE;
-      i2m_dt_status_t st = i2m_dt_insert_walk(&rm->lctx, i2m_dt_xyz(dt, w), i2m_dt_gid(dt, w), I2M_VK_FREE, hint, &lw);
-      if (st != I2M_DT_OK) return st == I2M_DT_FULL ? I2M_DT_FULL : I2M_DT_FAILED;
-      hint = rm->lctx.newt[0];
       rm->vmark_s[s] = rm->vstamp;
       rm->vmark_v[s] = w;
-      rm->vmark_l[s] = lw;
-      rm->lmap[lw] = w;
+      rm->link[rm->nlink++] = w;
     }
+  }
+  for (uint32_t a = 1; a < rm->nlink; a++) /* (a few dozen: insertion sort) */
+    for (uint32_t b = a; b > 0 && i2m_dt_gid(dt, rm->link[b]) < i2m_dt_gid(dt, rm->link[b - 1]); b--) {
+      const uint32_t x = rm->link[b];
+      rm->link[b] = rm->link[b - 1];
+      rm->link[b - 1] = x;
+    }
+  uint32_t hint = 0;
+  for (uint32_t k = 0; k < rm->nlink; k++) {
+    const uint32_t w = rm->link[k];
+    uint32_t lw = I2M_DT_NONE;
+    i2m_dt_status_t st = i2m_dt_insert_walk(&rm->lctx, i2m_dt_xyz(dt, w), i2m_dt_gid(dt, w), I2M_VK_FREE, hint, &lw);
+    if (st != I2M_DT_OK) return st == I2M_DT_FULL ? I2M_DT_FULL : I2M_DT_FAILED;
+    hint = rm->lctx.newt[0];
+    rm->vmark_l[vmap_slot(rm, w)] = lw;
+    rm->lmap[lw] = w;
   }
   return I2M_DT_OK;
 }

@@ -240,13 +240,9 @@ uint32_t sched_phase(sched_t *S, int color, sched_task_t *out, int *owner)
     if (x[0] % 3 + 3 * (x[1] % 3) + 9 * (x[2] % 3) == color && S->work[c] > 0) list[n++] = (by_work_t){S->work[c], c};
   }
   qsort(list, n, sizeof *list, cmp_by_work);
-  for (uint32_t k = 0; k < n; k++) { /* the busiest first, each to its holder unless it has most */
+  for (uint32_t k = 0; k < n; k++) { /* each to the rank that holds most of its block: data stays put */
     const sched_task_t t = {list[k].cell, false};
-    int r = sched_best_rank(S, t);
-    int lightest = 0;
-    for (int q = 1; q < S->nranks; q++)
-      if (load[q] < load[lightest]) lightest = q;
-    if (load[r] > load[lightest] + list[k].work) r = lightest; /* (data moves rather than a rank waits) */
+    const int r = sched_best_rank(S, t);
     load[r] += list[k].work;
     out[k] = t;
     owner[k] = r;

@@ -77,8 +77,8 @@ bool sched_busy(const sched_t *S);
 
 /** The deterministic mode's phase: the tasks of one colour (the cells whose coordinates
  *  modulo 3 make it) that have work, each assigned (owner[k]) to the rank that holds most of
- *  its block, balanced by work; their blocks locked and given to their ranks.  Returns their
- *  number. */
+ *  its block (the data stays put; the shares of sched_partition balance the work); their
+ *  blocks locked and given to their ranks.  Returns their number. */
 uint32_t sched_phase(sched_t *S, int color, sched_task_t *out, int *owner);
 
 /** The deterministic mode's wide pass: the cells with wide work, in order. */

@@ -283,16 +283,6 @@ void i2m_refine_release_scratch(i2m_refine_t *r);
 /** After extraction: frees the triangulation too (stats and parameters stay usable). */
 void i2m_refine_release_mesh(i2m_refine_t *r);
 
-/** After refinement: gives every fragment the label it shares the most face area with (0:
- *  it leaves the mesh).  A fragment is a face-connected piece of one label of at most 64 tets
- *  and less than 27 voxels of volume, inside a component of the image (6-connected voxels of
- *  that label) of at least 64 voxels of which it holds less than an eighth: a bit of a larger
- *  region left apart from it where the region narrows below delta, floating or hanging by an
- *  edge (a loose body or a hinge in a finite-element model).  Specks the image really has
- *  stay.  Interface triangles are only removed or relabelled, so every guarantee holds.  Uses
- *  the transform (still alive); the same result on any number of threads; counted in the
- *  stats. */
-i2m_err_t i2m_refine_repair_fragments(i2m_refine_t *r);
 
 /** Image components of at least this many voxels must come out whole (one piece of tets). */
 #define I2M_WHOLE_MIN_VOXELS 10000
@@ -300,12 +290,148 @@ i2m_err_t i2m_refine_repair_fragments(i2m_refine_t *r);
 /** Rounds of the component rule (bridges, then refinement) at most. */
 #define I2M_BRIDGE_ROUNDS 6
 
-/** The component rule (R8), after refinement has run dry: for every image component of at
- *  least @p min_voxels voxels that two or more pieces of tets (not fragments) stand for, free
- *  vertices at the centres of the fewest voxels of the component that join each piece but the
- *  largest to another (voxels whose centres lie in tets of other labels).  Their new tets are
- *  queued on worker 0: refinement must run again, then this rule, until *inserted is 0.
- *  *splits: the split components found.  Alone (no other work on the mesh). */
+/* ---- pieces of the labelled mesh (src/refine/pieces.c).  A piece is a face-connected set of
+ * kept tets of one label.  Each process finds the parts of its own tets (pieces of its local
+ * mesh); the dist layer joins parts across the faces between ranks; i2m_pieces_resolve turns
+ * every part into the pieces of the whole mesh (groups), the same on any number of ranks and
+ * threads.  On one process, the calls below that need groups resolve the local parts. ---- */
+
+/** A part: its least tet (the sorted global ids, a key no order of work changes), tets,
+ *  volume, label; small: at most 64 tets (a fragment's size). */
+typedef struct {
+  i2m_gidx_t key[4];
+  double volume;
+  int64_t ntets;
+  uint16_t label;
+  bool small;
+} i2m_part_t;
+
+/** The volume of a part whose tets' circumcentres lie in one image component (root run of
+ *  the image's 6-connected components), and its least tet there. */
+typedef struct {
+  i2m_gidx_t key[4];
+  double volume;
+  int64_t comp;
+  uint32_t part;
+  uint32_t seed; /* (the local slot of that tet) */
+} i2m_part_comp_t;
+
+/** The face area a small part shares with another label (0: outside the mesh). */
+typedef struct {
+  double area;
+  uint32_t part;
+  uint16_t label;
+} i2m_part_area_t;
+
+/** A face of a part whose other side another rank holds. */
+typedef struct {
+  i2m_gidx_t key[3]; /* the face's sorted global ids */
+  int32_t cell;      /* the cell of the tet across it */
+  uint32_t part;
+  uint16_t label;
+} i2m_part_face_t;
+
+/** The parts of one process (borrowed from r), or of every rank (gathered). */
+typedef struct {
+  size_t nparts, ncomps, nareas, nfaces;
+  i2m_part_t *part;
+  i2m_part_comp_t *comp;
+  i2m_part_area_t *area;
+  i2m_part_face_t *face;
+} i2m_parts_t;
+
+/** A piece of the whole mesh: one or more parts joined across ranks. */
+typedef struct {
+  i2m_gidx_t key[4];   /**< its least tet */
+  i2m_gidx_t seed[4];  /**< its least tet whose circumcentre lies in its component */
+  double volume, comp_volume; /**< its volume, and of it in its component */
+  int64_t ntets;
+  int64_t comp;        /**< the image component that holds the circumcentres of most of its volume (-1: none) */
+  int32_t relabel;     /**< a fragment: the label index it takes (-1: none) */
+  uint16_t label;
+} i2m_group_t;
+
+/** A large image component that two or more pieces (not fragments) stand for. */
+typedef struct {
+  int64_t comp;
+  uint16_t label;
+  uint32_t ngroups;
+  int64_t *groups; /**< owned: the pieces, the largest first (ties: the least key) */
+} i2m_split_t;
+
+/** The pieces of the whole mesh. */
+typedef struct {
+  size_t ngroups, nparts, nsplits;
+  i2m_group_t *group;   /**< owned: [ngroups] */
+  int64_t *part_group;  /**< owned: [nparts] the group of each part (of the parts resolved, or this rank's) */
+  i2m_split_t *split;   /**< owned: [nsplits] */
+  int64_t fragments, fragment_tets;
+} i2m_pieces_global_t;
+
+/** This process's parts (borrowed: valid until the mesh or a label changes). */
+i2m_err_t i2m_refine_parts(i2m_refine_t *r, i2m_parts_t *out);
+/** The pieces of the whole mesh from every part (indices into all->part), joined where pairs
+ *  (npairs pairs of part indices) say two parts meet across a face; fragments decided
+ *  (relabel); splits of components of at least min_voxels listed.  Pure: the same on every
+ *  rank that has the same input. */
+i2m_err_t i2m_pieces_resolve(const i2m_refine_t *r, const i2m_parts_t *all, const int64_t *pairs, size_t npairs,
+                             int64_t min_voxels, i2m_pieces_global_t *G);
+void i2m_pieces_global_free(i2m_pieces_global_t *G);
+/** The dist layer's result for this rank (G->part_group: this rank's parts), moved into r
+ *  (G is emptied). */
+i2m_err_t i2m_refine_set_groups(i2m_refine_t *r, i2m_pieces_global_t *G);
+/** The pieces of the whole mesh: set by the dist layer, or resolved from this process's parts
+ *  (borrowed, as i2m_refine_parts). */
+i2m_err_t i2m_refine_groups(i2m_refine_t *r, int64_t min_voxels, const i2m_pieces_global_t **out);
+
+/** After refinement: gives every fragment the label it shares the most face area with (0:
+ *  it leaves the mesh).  A fragment is a piece of one label of at most 64 tets and less than
+ *  27 voxels of volume, inside a component of the image (6-connected voxels of that label) of
+ *  at least 64 voxels of which it holds less than an eighth: a bit of a larger region left
+ *  apart from it where the region narrows below delta, floating or hanging by an edge (a
+ *  loose body or a hinge in a finite-element model).  Specks the image really has stay.
+ *  Interface triangles are only removed or relabelled, so every guarantee holds.  Uses the
+ *  transform (still alive) and the groups (i2m_refine_groups); the same result on any number
+ *  of threads and ranks; counted in the stats. */
+i2m_err_t i2m_refine_repair_fragments(i2m_refine_t *r);
+
+/* ---- the component rule (R8, src/refine/bridges.c) ---- */
+
+/** A voxel of a split component whose centre lies in a local tet: the split (index in
+ *  G->split), the voxel (box index of the transform), its class: the position of the tet's
+ *  piece in the split's list, or I2M_CLAIM_GAP (another label, outside, a fragment). */
+typedef struct {
+  int64_t voxel;
+  int32_t split;
+  int32_t cls;
+} i2m_voxel_claim_t;
+#define I2M_CLAIM_GAP INT32_MAX
+
+/** A free vertex of the component rule, with the global id it gets on every rank. */
+typedef struct {
+  double x[3];
+  i2m_gidx_t gid;
+} i2m_bridge_point_t;
+
+/** The claims of the voxels of every split in G by the local tets (*out owned). */
+i2m_err_t i2m_refine_split_claims(i2m_refine_t *r, const i2m_pieces_global_t *G, i2m_voxel_claim_t **out, size_t *n);
+/** The bridge points from every rank's claims (sorted in place; where two claim a voxel the
+ *  lower class wins): for each piece of a split but the largest, a 0-1 breadth-first search
+ *  over the component's voxels finds the path to another of its pieces that crosses the
+ *  fewest gap voxels; a point at the centre of each gap voxel, and of each voxel face where
+ *  the path passes from one class to another.  Pure; round numbers the global ids. */
+i2m_err_t i2m_bridge_points(const i2m_refine_t *r, const i2m_pieces_global_t *G, i2m_voxel_claim_t *claims,
+                            size_t nclaims, int round, i2m_bridge_point_t **out, size_t *np);
+/** One process: inserts the points now (worker 0, in order; their tets queued for refinement,
+ *  in the tiles if a tiling is in place, then put in an order of their own). */
+i2m_err_t i2m_refine_insert_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p, size_t n, int64_t *inserted);
+/** Dist layer: the points whose cell this rank holds become work of that cell's task (which
+ *  inserts them first).  Returns through *filed how many. */
+i2m_err_t i2m_refine_file_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p, size_t n, int64_t *filed);
+
+/** The component rule on one process, after refinement has run dry: the splits, their bridge
+ *  points, inserted (i2m_refine_insert_bridges): refinement must run again, then this rule,
+ *  until *inserted is 0.  *splits: the split components found.  Alone. */
 i2m_err_t i2m_refine_bridge_splits(i2m_refine_t *r, int64_t min_voxels, int64_t *splits, int64_t *inserted);
 
 /** Per label: how the image's 6-connected components come out in the mesh. */
@@ -317,9 +443,12 @@ typedef struct {
   int64_t split_components; /**< large components that two or more pieces (not fragments) stand for */
 } i2m_label_pieces_t;
 
-/** After refinement (and the fragments' repair): the census of every label's components and
- *  pieces; large components have at least @p min_voxels voxels.  *out (owned, [nlabels],
- *  by label index) is freed with i2m_free.  Uses the transform (still alive). */
+/** The census of every label's components and pieces from the pieces G; large components
+ *  have at least @p min_voxels voxels.  *out (owned, [nlabels], by label index) is freed with
+ *  i2m_free. */
+i2m_err_t i2m_refine_census_of(i2m_refine_t *r, const i2m_pieces_global_t *G, int64_t min_voxels,
+                               i2m_label_pieces_t **out);
+/** After refinement (and the fragments' repair): the census from i2m_refine_groups. */
 i2m_err_t i2m_refine_census(i2m_refine_t *r, int64_t min_voxels, i2m_label_pieces_t **out);
 
 /** The labelled mesh: tets whose circumcentre is inside, with their label value, and the

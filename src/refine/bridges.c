@@ -8,116 +8,32 @@
  * voxels); a free vertex is inserted at the centre of each gap voxel, and refinement goes on
  * with every rule.  Bridge vertices are never removed by R7 (they are not in its grid): a
  * voxel centre lies at least half a voxel from every interface, so they keep a minimum
- * distance from the surface vertices and refinement still terminates.  The threads layer
- * alternates this rule and refinement until no component is split (or a few rounds).
+ * distance from the surface vertices and refinement still terminates.  The threads layer (or
+ * the dist layer) alternates this rule and refinement until no component is split (or a few
+ * rounds).
  *
- * A voxel's tet is found by a walk from the tet of the voxel it was reached from (voxels next
- * to each other: a step or two).  Everything runs on worker 0, alone; the search and the
- * insertions follow the pieces' and the voxels' order, so the result does not depend on the
- * number of threads. */
+ * It works in three steps, so that ranks that each hold part of the mesh do it alike:
+ *   claims  each process says, for every voxel of a split component whose centre lies in one
+ *           of its tets, which piece of the split holds it (or a gap): a pass over its tets;
+ *   points  the search over the claims of every rank (pure, on one process);
+ *   insert  one process inserts them at once (worker 0, in order); ranks file each point as
+ *           work of the task of the cell that holds it (tiles.c inserts it there).
+ * The points' global ids are fixed by the round and their order, and the triangulation of a
+ * set of points with their ids is unique (symbolic perturbation), so the mesh after a round's
+ * insertions does not depend on who inserted what, nor in which order. */
 #include "refine_impl.h"
 
 #include <stdlib.h>
 #include <string.h>
 
-/* A visited voxel: its box index (key), the voxel it was reached from, its tet, its class. */
-typedef struct {
-  int64_t key; /* -1: empty slot */
-  int64_t from;
-  uint32_t tet;
-  int8_t cls; /* CLS_* */
-} visit_t;
+#include "i2m/predicates.h"
 
-enum { CLS_OWN = 0, CLS_GAP = 1, CLS_GOAL = 2 };
+#define BRIDGE_GID_BASE ((i2m_gidx_t)14 << 52) /* (the tilings' ranges: below 14 << 52 and from 15 << 52) */
+#define BRIDGE_GID_ROUND_SHIFT 40
 
-typedef struct {
-  visit_t *slot;
-  size_t cap, n;
-} visits_t;
+/* ---- voxels of the transform's box ---- */
 
-static size_t visit_hash(int64_t key, size_t cap) { return (size_t)(((uint64_t)key * 0x9E3779B97F4A7C15ull) >> 20) & (cap - 1); }
-
-static i2m_err_t visits_grow(visits_t *V)
-{
-  const size_t cap = V->cap ? 2 * V->cap : 1024;
-  visit_t *s = NULL;
-  I2M_CALL(i2m_malloc(cap, sizeof *s, &s));
-  for (size_t i = 0; i < cap; i++) s[i].key = -1;
-  for (size_t i = 0; i < V->cap; i++) {
-    if (V->slot[i].key < 0) continue;
-    size_t h = visit_hash(V->slot[i].key, cap);
-    while (s[h].key >= 0) h = (h + 1) & (cap - 1);
-    s[h] = V->slot[i];
-  }
-  i2m_free(&V->slot);
-  V->slot = s;
-  V->cap = cap;
-  return I2M_OK;
-}
-
-/* The visit of voxel key, or NULL. */
-static visit_t *visits_find(const visits_t *V, int64_t key)
-{
-  if (!V->cap) return NULL;
-  for (size_t h = visit_hash(key, V->cap);; h = (h + 1) & (V->cap - 1)) {
-    if (V->slot[h].key == key) return &V->slot[h];
-    if (V->slot[h].key < 0) return NULL;
-  }
-}
-
-static i2m_err_t visits_add(visits_t *V, visit_t v)
-{
-  if (2 * (V->n + 1) > V->cap) I2M_CALL(visits_grow(V));
-  size_t h = visit_hash(v.key, V->cap);
-  while (V->slot[h].key >= 0) h = (h + 1) & (V->cap - 1);
-  V->slot[h] = v;
-  V->n++;
-  return I2M_OK;
-}
-
-/* A double-ended queue of voxel keys (0-1 breadth-first search). */
-typedef struct {
-  int64_t *a;
-  size_t cap, head, n;
-} deque_t;
-
-static i2m_err_t deque_grow(deque_t *q)
-{
-  const size_t cap = q->cap ? 2 * q->cap : 1024;
-  int64_t *a = NULL;
-  I2M_CALL(i2m_malloc(cap, sizeof *a, &a));
-  for (size_t i = 0; i < q->n; i++) a[i] = q->a[(q->head + i) % q->cap];
-  i2m_free(&q->a);
-  q->a = a;
-  q->cap = cap;
-  q->head = 0;
-  return I2M_OK;
-}
-
-static i2m_err_t deque_push(deque_t *q, int64_t x, bool front)
-{
-  if (q->n == q->cap) I2M_CALL(deque_grow(q));
-  if (front) {
-    q->head = (q->head + q->cap - 1) % q->cap;
-    q->a[q->head] = x;
-  } else {
-    q->a[(q->head + q->n) % q->cap] = x;
-  }
-  q->n++;
-  return I2M_OK;
-}
-
-static int64_t deque_pop(deque_t *q)
-{
-  const int64_t x = q->a[q->head];
-  q->head = (q->head + 1) % q->cap;
-  q->n--;
-  return x;
-}
-
-/* ---- voxels ---- */
-
-/* The world centre of box voxel key. */
+/* The mesh-frame centre of box voxel key. */
 static void voxel_centre(const i2m_edt_t *e, int64_t key, double w[3])
 {
   const int64_t i = key % e->m[0], j = key / e->m[0] % e->m[1], k = key / e->m[0] / e->m[1];
@@ -125,223 +41,378 @@ static void voxel_centre(const i2m_edt_t *e, int64_t key, double w[3])
   for (int a = 0; a < 3; a++) w[a] = e->k2w[a][0] * u[0] + e->k2w[a][1] * u[1] + e->k2w[a][2] * u[2] + e->k2w[a][3];
 }
 
-static bool voxel_in_component(const i2m_refine_t *r, int64_t key, int64_t comp)
+static bool box_voxel_in_component(const i2m_refine_t *r, int64_t i, int64_t j, int64_t k, int64_t comp)
 {
   const i2m_edt_t *e = r->edt;
-  const int64_t i = e->lo[0] + key % e->m[0], j = e->lo[1] + key / e->m[0] % e->m[1], k = e->lo[2] + key / e->m[0] / e->m[1];
-  return i2m_components_find(&r->pieces_ic, i, j, k) == comp;
+  return i2m_components_find(&r->pieces_ic, e->lo[0] + i, e->lo[1] + j, e->lo[2] + k) == comp;
 }
+
+/* The box-voxel bounds of a component (from its runs). */
+static void component_box(const i2m_refine_t *r, int64_t comp, int64_t lo[3], int64_t hi[3])
+{
+  const i2m_components_t *ic = &r->pieces_ic;
+  const i2m_edt_t *e = r->edt;
+  for (int a = 0; a < 3; a++) {
+    lo[a] = INT64_MAX;
+    hi[a] = INT64_MIN;
+  }
+  for (int64_t row = 0; row < ic->n[1] * ic->n[2]; row++)
+    for (int64_t run = ic->row[row]; run < ic->row[row + 1]; run++) {
+      if (ic->par[run] != comp) continue;
+      const int64_t x[3][2] = {{ic->x0[run], ic->x0[run] + ic->len[run] - 1}, {row % ic->n[1], row % ic->n[1]},
+                               {row / ic->n[1], row / ic->n[1]}};
+      for (int a = 0; a < 3; a++) {
+        lo[a] = x[a][0] + ic->lo[a] - e->lo[a] < lo[a] ? x[a][0] + ic->lo[a] - e->lo[a] : lo[a];
+        hi[a] = x[a][1] + ic->lo[a] - e->lo[a] > hi[a] ? x[a][1] + ic->lo[a] - e->lo[a] : hi[a];
+      }
+    }
+}
+
+/* ---- claims ---- */
 
 typedef struct {
-  i2m_refine_t *r;
-  const pieces_t *P;
-  const split_t *s;
-  uint32_t own;     /* the piece (index) the search starts from */
-  visits_t V;
-  deque_t q;
-} search_t;
+  i2m_voxel_claim_t *c;
+  size_t n, cap;
+} claims_t;
 
-/* The class of a voxel whose centre lies in tet t. */
-static int8_t voxel_class(const search_t *S, uint32_t t)
+static i2m_err_t claim(claims_t *C, int64_t voxel, int32_t split, int32_t cls)
 {
-  const i2m_dt_t *dt = S->r->dt;
-  if (!tet_kept(dt, t) || tinfo(dt, t)->label != S->s->label) return CLS_GAP;
-  const uint32_t pi = pieces_index(S->P, t);
-  if (pi == S->own) return CLS_OWN;
-  for (uint32_t k = 0; k < S->s->npieces; k++)
-    if (S->s->pieces[k] == pi) return CLS_GOAL;
-  return CLS_GAP; /* a fragment: it joins nothing */
-}
-
-/* Visits voxel key reached from `from` (its tet: start), unless seen; queued by its cost. */
-static i2m_err_t visit(search_t *S, int64_t key, int64_t from, uint32_t start)
-{
-  if (visits_find(&S->V, key)) return I2M_OK;
-  double w[3];
-  voxel_centre(S->r->edt, key, w);
-  const uint32_t t = i2m_dt_locate(&S->r->workers[0].ctx, w, start);
-  const visit_t v = {key, from, t, voxel_class(S, t)};
-  I2M_CALL(visits_add(&S->V, v));
-  return deque_push(&S->q, key, v.cls != CLS_GAP);
-}
-
-/* The 0-1 search from piece own's first voxel; *goal is the first voxel reached in another
- * piece of the component (-1: none). */
-static i2m_err_t search_bridge(search_t *S, uint32_t seed_tet, int64_t *goal)
-{
-  const i2m_edt_t *e = S->r->edt;
-  *goal = -1;
-  tet_geom_t g;
-  tet_centre(S->r, seed_tet, &g);
-  const int64_t start = i2m_edt_voxel_k(e, g.u);
-  if (start < 0 || !voxel_in_component(S->r, start, S->s->comp)) return I2M_OK;
-  I2M_CALL(visit(S, start, -1, seed_tet));
-  const int64_t step[3] = {1, e->m[0], e->m[0] * e->m[1]};
-  while (S->q.n) {
-    const int64_t key = deque_pop(&S->q);
-    const visit_t *v = visits_find(&S->V, key);
-    if (v->cls == CLS_GOAL) {
-      *goal = key;
-      return I2M_OK;
-    }
-    const uint32_t tet = v->tet;
-    const int64_t c[3] = {key % e->m[0], key / e->m[0] % e->m[1], key / e->m[0] / e->m[1]};
-    for (int a = 0; a < 3; a++)
-      for (int d = -1; d <= 1; d += 2) {
-        if (c[a] + d < 0 || c[a] + d >= e->m[a]) continue;
-        const int64_t nk = key + d * step[a];
-        if (voxel_in_component(S->r, nk, S->s->comp)) I2M_CALL(visit(S, nk, key, tet));
-      }
+  if (C->n == C->cap) {
+    C->cap = C->cap ? 2 * C->cap : 4096;
+    I2M_CALL(i2m_realloc(C->cap, sizeof *C->c, &C->c));
   }
+  C->c[C->n++] = (i2m_voxel_claim_t){voxel, split, cls};
   return I2M_OK;
 }
 
-/* ---- the rule ---- */
-
-/* A tet of piece pi whose circumcentre lies in the component (the search starts there): one
- * of those the census looked at, or its root. */
-static uint32_t seed_of(const i2m_refine_t *r, const pieces_t *P, uint32_t pi, int64_t comp)
+/* Does tet t (vertices a) hold point p (inside or on its boundary)? */
+static bool tet_holds(const double *a[4], const double p[3])
 {
-  const uint32_t n = i2m_dt_ntets_slots(r->dt), root = P->piece[pi].root;
-  for (uint32_t t = root; t < n; t++)
-    if (tet_kept(r->dt, t) && pieces_index(P, t) == pi && atomic_load_explicit(&P->cnt[t], memory_order_relaxed) == (uint64_t)comp)
-      return t;
-  return root;
+  const int s = i2m_orient3d(a[0], a[1], a[2], a[3]);
+  if (s == 0) return false; /* (a flat tet holds no volume) */
+  for (int i = 0; i < 4; i++) {
+    const double *b[4] = {a[0], a[1], a[2], a[3]};
+    b[i] = p;
+    const int o = i2m_orient3d(b[0], b[1], b[2], b[3]);
+    if (o != 0 && o != s) return false;
+  }
+  return true;
 }
 
-/* Tets of each piece of the split (the largest stays as it is). */
-static i2m_err_t piece_sizes(const i2m_refine_t *r, const pieces_t *P, const split_t *s, int64_t *size)
+/* The class of the voxels in tet t for split si (gpos: each group's place in its split). */
+static int32_t tet_class(const i2m_refine_t *r, const i2m_pieces_global_t *G, const int32_t *gsplit,
+                         const int32_t *gpos, int32_t si, uint32_t t)
 {
-  const uint32_t n = i2m_dt_ntets_slots(r->dt);
-  for (uint32_t k = 0; k < s->npieces; k++) size[k] = 0;
+  if (!tet_kept(r->dt, t) || tinfo(r->dt, t)->label != G->split[si].label) return I2M_CLAIM_GAP;
+  const int64_t g = G->part_group[pieces_index(&r->pieces, t)];
+  return gsplit[g] == si ? gpos[g] : I2M_CLAIM_GAP; /* (another piece: a fragment, it joins nothing) */
+}
+
+/* The claims of split si's voxels by the local tets. */
+static i2m_err_t claim_split(const i2m_refine_t *r, const i2m_pieces_global_t *G, const int32_t *gsplit,
+                             const int32_t *gpos, int32_t si, claims_t *C)
+{
+  const i2m_dt_t *dt = r->dt;
+  const i2m_edt_t *e = r->edt;
+  int64_t lo[3], hi[3];
+  component_box(r, G->split[si].comp, lo, hi);
+  const uint32_t n = i2m_dt_ntets_slots(dt);
   for (uint32_t t = 0; t < n; t++) {
-    if (!tet_kept(r->dt, t) || tinfo(r->dt, t)->label != s->label) continue;
-    const uint32_t pi = pieces_index(P, t);
-    for (uint32_t k = 0; k < s->npieces; k++)
-      if (s->pieces[k] == pi) size[k]++;
+    if (!i2m_dt_alive(dt, t)) continue;
+    const uint32_t *v = dt->tv + 4 * (size_t)t;
+    const double *x[4];
+    double umin[3] = {INFINITY, INFINITY, INFINITY}, umax[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int i = 0; i < 4; i++) {
+      x[i] = i2m_dt_xyz(dt, v[i]);
+      for (int a = 0; a < 3; a++) {
+        const double u = e->w2k[a][0] * x[i][0] + e->w2k[a][1] * x[i][1] + e->w2k[a][2] * x[i][2] + e->w2k[a][3];
+        umin[a] = fmin(umin[a], u);
+        umax[a] = fmax(umax[a], u);
+      }
+    }
+    int64_t b0[3], b1[3]; /* the voxels whose centres (index + 1/2) the tet's box holds, in the component's box */
+    bool empty = false;
+    for (int a = 0; a < 3; a++) {
+      const double f0 = ceil(umin[a] - 0.5 - 1e-9), f1 = floor(umax[a] - 0.5 + 1e-9);
+      b0[a] = f0 > (double)lo[a] ? (int64_t)f0 : lo[a];
+      b1[a] = f1 < (double)hi[a] ? (int64_t)f1 : hi[a];
+      empty |= b0[a] > b1[a];
+    }
+    if (empty) continue;
+    const int32_t cls = tet_class(r, G, gsplit, gpos, si, t);
+    for (int64_t k = b0[2]; k <= b1[2]; k++)
+      for (int64_t j = b0[1]; j <= b1[1]; j++)
+        for (int64_t i = b0[0]; i <= b1[0]; i++) {
+          if (!box_voxel_in_component(r, i, j, k, G->split[si].comp)) continue;
+          const int64_t key = (k * e->m[1] + j) * e->m[0] + i;
+          double w[3];
+          voxel_centre(e, key, w);
+          if (tet_holds(x, w)) I2M_CALL(claim(C, key, si, cls));
+        }
   }
   return I2M_OK;
 }
 
-/* A bridge point: the centre of voxel a (b < 0), or the centre of the face between voxels a
- * and b. */
+i2m_err_t i2m_refine_split_claims(i2m_refine_t *r, const i2m_pieces_global_t *G, i2m_voxel_claim_t **out, size_t *n)
+{
+  claims_t C = {NULL, 0, 0};
+  int32_t *gsplit = NULL, *gpos = NULL;
+  pieces_t *P;
+  *out = NULL;
+  *n = 0;
+  I2M_CALL(pieces_get(r, &P));
+  i2m_err_t err = i2m_malloc(G->ngroups + 1, sizeof *gsplit, &gsplit);
+  if (err == I2M_OK) err = i2m_malloc(G->ngroups + 1, sizeof *gpos, &gpos);
+  for (size_t g = 0; g < G->ngroups && err == I2M_OK; g++) gsplit[g] = gpos[g] = -1;
+  for (size_t s = 0; s < G->nsplits && err == I2M_OK; s++)
+    for (uint32_t k = 0; k < G->split[s].ngroups; k++) {
+      gsplit[G->split[s].groups[k]] = (int32_t)s;
+      gpos[G->split[s].groups[k]] = (int32_t)k;
+    }
+  for (size_t s = 0; s < G->nsplits && err == I2M_OK; s++) err = claim_split(r, G, gsplit, gpos, (int32_t)s, &C);
+  i2m_free(&gsplit);
+  i2m_free(&gpos);
+  if (err != I2M_OK) {
+    i2m_free(&C.c);
+    return err;
+  }
+  *out = C.c;
+  *n = C.n;
+  return I2M_OK;
+}
+
+/* ---- the search ---- */
+
+static int cmp_claim(const void *a, const void *b)
+{
+  const i2m_voxel_claim_t *x = a, *y = b;
+  if (x->split != y->split) return x->split < y->split ? -1 : 1;
+  if (x->voxel != y->voxel) return x->voxel < y->voxel ? -1 : 1;
+  return (x->cls > y->cls) - (x->cls < y->cls);
+}
+
+/* The index of voxel key among c[0..n) (sorted by voxel), or -1. */
+static int64_t find_voxel(const i2m_voxel_claim_t *c, int64_t n, int64_t key)
+{
+  int64_t a = 0, b = n;
+  while (a < b) {
+    const int64_t m = a + (b - a) / 2;
+    if (c[m].voxel < key) a = m + 1;
+    else b = m;
+  }
+  return a < n && c[a].voxel == key ? a : -1;
+}
+
+/* A bridge point: the centre of voxel a (b < 0), or of the face between voxels a < b. */
 typedef struct {
   int64_t a, b;
 } point_t;
 
-static i2m_err_t bridge_room(point_t **p, size_t *n, size_t *cap, size_t more)
+typedef struct {
+  point_t *p;
+  size_t n, cap;
+} points_t;
+
+static i2m_err_t add_point(points_t *B, int64_t a, int64_t b)
 {
-  if (*n + more <= *cap) return I2M_OK;
-  *cap = 2 * *cap + 64;
-  return i2m_realloc(*cap, sizeof **p, p);
+  if (B->n == B->cap) {
+    B->cap = B->cap ? 2 * B->cap : 64;
+    I2M_CALL(i2m_realloc(B->cap, sizeof *B->p, &B->p));
+  }
+  B->p[B->n++] = b < 0 || a < b ? (point_t){a, b} : (point_t){b, a};
+  return I2M_OK;
 }
 
-/* Inserts a free vertex at bridge point b (not R7's to remove); the new tets are classified
- * and queued by worker 0.  *hint: a live tet to walk from. */
-static i2m_err_t insert_bridge(i2m_refine_t *r, point_t b, uint32_t *hint, int64_t *inserted)
+static int cmp_point(const void *x, const void *y)
+{
+  const point_t *a = x, *b = y;
+  if (a->a != b->a) return a->a < b->a ? -1 : 1;
+  return (a->b > b->b) - (a->b < b->b);
+}
+
+/* Scratch of one split's searches over its n voxels. */
+typedef struct {
+  int32_t *dist;
+  int64_t *from;
+  uint8_t *done;
+  int64_t *dq; /* a double-ended queue of voxel indices, 2n + 2 long: head and tail wrap */
+} search_t;
+
+/* The 0-1 search from every voxel of class own to the first voxel of another piece of the
+ * split; the path's points into B.  Returns the gap voxels crossed (-1: no path). */
+static int64_t search_from(const i2m_edt_t *e, const i2m_voxel_claim_t *c, int64_t n, int32_t own, search_t *S,
+                           points_t *B, i2m_err_t *err)
+{
+  const int64_t cap = 2 * n + 2, step[3] = {1, e->m[0], e->m[0] * e->m[1]};
+  int64_t head = 0, len = 0;
+  for (int64_t i = 0; i < n; i++) {
+    S->dist[i] = INT32_MAX;
+    S->from[i] = -1;
+    S->done[i] = 0;
+  }
+  for (int64_t i = 0; i < n; i++)
+    if (c[i].cls == own) {
+      S->dist[i] = 0;
+      S->dq[(head + len++) % cap] = i;
+    }
+  int64_t goal = -1;
+  while (len && goal < 0) {
+    const int64_t u = S->dq[head];
+    head = (head + 1) % cap;
+    len--;
+    if (S->done[u]) continue;
+    S->done[u] = 1;
+    if (c[u].cls != own && c[u].cls != I2M_CLAIM_GAP) {
+      goal = u;
+      break;
+    }
+    const int64_t key = c[u].voxel, x[3] = {key % e->m[0], key / e->m[0] % e->m[1], key / e->m[0] / e->m[1]};
+    for (int a = 0; a < 3; a++)
+      for (int d = -1; d <= 1; d += 2) {
+        if (x[a] + d < 0 || x[a] + d >= e->m[a]) continue;
+        const int64_t v = find_voxel(c, n, key + d * step[a]);
+        if (v < 0 || S->done[v]) continue;
+        const int32_t w = c[v].cls == I2M_CLAIM_GAP;
+        if (S->dist[u] + w >= S->dist[v]) continue;
+        S->dist[v] = S->dist[u] + w;
+        S->from[v] = u;
+        if (w) S->dq[(head + len++) % cap] = v; /* (a voxel is queued at most twice: 2n + 2 slots) */
+        else {
+          head = (head + cap - 1) % cap;
+          S->dq[head] = v;
+          len++;
+        }
+      }
+  }
+  if (goal < 0) return -1;
+  int64_t gaps = 0;
+  for (int64_t x = goal; x >= 0 && *err == I2M_OK; x = S->from[x]) { /* back along the path */
+    if (c[x].cls == I2M_CLAIM_GAP) {
+      *err = add_point(B, c[x].voxel, -1);
+      gaps++;
+    }
+    /* pieces that meet only at an edge or a vertex: the voxel centres on either side lie in
+     * tets of the label, and the voxel face between them is where they must be joined */
+    const int64_t f = S->from[x];
+    if (f >= 0 && c[f].cls != c[x].cls && *err == I2M_OK) *err = add_point(B, c[x].voxel, c[f].voxel);
+  }
+  return gaps;
+}
+
+/* The points of split s (its claims c[0..n), deduplicated). */
+static i2m_err_t bridge_split(const i2m_refine_t *r, const i2m_split_t *s, const i2m_voxel_claim_t *c, int64_t n,
+                              points_t *B)
+{
+  search_t S = {NULL, NULL, NULL, NULL};
+  i2m_err_t err = i2m_malloc((size_t)n + 1, sizeof *S.dist, &S.dist);
+  if (err == I2M_OK) err = i2m_malloc((size_t)n + 1, sizeof *S.from, &S.from);
+  if (err == I2M_OK) err = i2m_malloc((size_t)n + 1, sizeof *S.done, &S.done);
+  if (err == I2M_OK) err = i2m_malloc(2 * (size_t)n + 2, sizeof *S.dq, &S.dq);
+  for (uint32_t k = 1; k < s->ngroups && err == I2M_OK; k++) { /* every piece but the largest */
+    const int64_t gaps = search_from(r->edt, c, n, (int32_t)k, &S, B, &err);
+    i2m_debug("bridges: label %lld, piece %u of %u: %s, %lld gap voxels (%lld voxels)",
+              (long long)r->img->label_value[s->label], k + 1, s->ngroups, gaps >= 0 ? "bridged" : "no path",
+              (long long)(gaps > 0 ? gaps : 0), (long long)n);
+  }
+  i2m_free(&S.dist);
+  i2m_free(&S.from);
+  i2m_free(&S.done);
+  i2m_free(&S.dq);
+  return err;
+}
+
+i2m_err_t i2m_bridge_points(const i2m_refine_t *r, const i2m_pieces_global_t *G, i2m_voxel_claim_t *claims,
+                            size_t nclaims, int round, i2m_bridge_point_t **out, size_t *np)
+{
+  *out = NULL;
+  *np = 0;
+  if (nclaims > 1) qsort(claims, nclaims, sizeof *claims, cmp_claim);
+  size_t m = 0; /* one claim per voxel: the lowest class (a piece before a gap) */
+  for (size_t i = 0; i < nclaims; i++)
+    if (m == 0 || claims[i].split != claims[m - 1].split || claims[i].voxel != claims[m - 1].voxel) claims[m++] = claims[i];
+  points_t B = {NULL, 0, 0};
+  i2m_err_t err = I2M_OK;
+  for (size_t a = 0, b; a < m && err == I2M_OK; a = b) {
+    for (b = a; b < m && claims[b].split == claims[a].split; b++) {
+    }
+    const size_t n0 = B.n;
+    err = bridge_split(r, &G->split[claims[a].split], claims + a, (int64_t)(b - a), &B);
+    if (err == I2M_OK && B.n - n0 > 1) qsort(B.p + n0, B.n - n0, sizeof *B.p, cmp_point);
+  }
+  i2m_bridge_point_t *p = NULL;
+  if (err == I2M_OK) err = i2m_malloc(B.n + 1, sizeof *p, &p);
+  size_t k = 0;
+  for (size_t i = 0; i < B.n && err == I2M_OK; i++) {
+    if (i > 0 && B.p[i].a == B.p[i - 1].a && B.p[i].b == B.p[i - 1].b) continue; /* (found by two searches) */
+    voxel_centre(r->edt, B.p[i].a, p[k].x);
+    if (B.p[i].b >= 0) {
+      double q[3];
+      voxel_centre(r->edt, B.p[i].b, q);
+      for (int d = 0; d < 3; d++) p[k].x[d] = 0.5 * (p[k].x[d] + q[d]);
+    }
+    p[k].gid = BRIDGE_GID_BASE + ((i2m_gidx_t)round << BRIDGE_GID_ROUND_SHIFT) + (i2m_gidx_t)k;
+    k++;
+  }
+  i2m_free(&B.p);
+  if (err != I2M_OK) {
+    i2m_free(&p);
+    return err;
+  }
+  *out = p;
+  *np = k;
+  return I2M_OK;
+}
+
+/* ---- insertion ---- */
+
+i2m_err_t i2m_refine_insert_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p, size_t n, int64_t *inserted)
 {
   i2m_refine_worker_t *w = &r->workers[0];
-  double p[3];
-  voxel_centre(r->edt, b.a, p);
-  if (b.b >= 0) {
-    double q[3];
-    voxel_centre(r->edt, b.b, q);
-    for (int a = 0; a < 3; a++) p[a] = 0.5 * (p[a] + q[a]);
-  }
-  if (!i2m_dt_alive(r->dt, *hint)) *hint = w->ctx.newt && w->ctx.nnew ? w->ctx.newt[0] : 0;
-  while (!i2m_dt_alive(r->dt, *hint)) (*hint)++; /* (some tet is alive) */
-  if (w->gid_next == w->gid_end) {
-    w->gid_next = atomic_fetch_add_explicit(&r->next_gid, 1024, memory_order_relaxed);
-    w->gid_end = w->gid_next + 1024;
-  }
-  uint32_t v;
-  i2m_dt_status_t st = i2m_dt_insert_walk(&w->ctx, p, w->gid_next, I2M_VK_FREE, *hint, &v);
-  while (st == I2M_DT_FULL) {
-    i2m_dt_unlock_all(&w->ctx);
-    I2M_CALL(i2m_refine_grow(r));
-    st = i2m_dt_insert_walk(&w->ctx, p, w->gid_next, I2M_VK_FREE, *hint, &v);
-  }
-  if (st != I2M_DT_OK) { /* (a vertex there already) */
-    i2m_dt_unlock_all(&w->ctx);
-    return I2M_OK;
-  }
-  w->gid_next++;
-  w->st.insertions++;
-  w->st.bridges++;
-  (*inserted)++;
-  i2m_err_t err = I2M_OK;
-  uint32_t n = w->ctx.nnew;
-  uint32_t *created = NULL;
-  I2M_CALL(i2m_malloc(n, sizeof *created, &created));
-  memcpy(created, w->ctx.newt, n * sizeof *created);
-  err = worker_process_created(w, created, n);
-  i2m_dt_unlock_all(&w->ctx);
-  *hint = created[0];
-  i2m_free(&created);
-  return err;
-}
-
-/* Bridges every piece of split s but the largest to another piece of it. */
-static i2m_err_t bridge_split(i2m_refine_t *r, const pieces_t *P, const split_t *s, int64_t *inserted)
-{
-  int64_t *size = NULL;
-  point_t *bridge = NULL;
-  size_t nb = 0, cap = 0;
-  search_t S = {r, P, s, 0, {NULL, 0, 0}, {NULL, 0, 0, 0}};
-  i2m_err_t err = I2M_OK;
-  I2M_CALL(i2m_malloc(s->npieces, sizeof *size, &size));
-  I2M_CALL_GOTO(err, done, piece_sizes(r, P, s, size));
-  uint32_t largest = 0;
-  for (uint32_t k = 1; k < s->npieces; k++)
-    if (size[k] > size[largest]) largest = k;
-  for (uint32_t k = 0; k < s->npieces; k++) {
-    if (k == largest) continue;
-    S.own = s->pieces[k];
-    S.V.n = 0;
-    for (size_t i = 0; i < S.V.cap; i++) S.V.slot[i].key = -1;
-    S.q.n = S.q.head = 0;
-    int64_t goal;
-    I2M_CALL_GOTO(err, done, search_bridge(&S, seed_of(r, P, s->pieces[k], s->comp), &goal));
-    int64_t gaps = 0;
-    for (int64_t x = goal; x >= 0;) { /* back along the path: its gap voxels, and its steps between classes */
-      const visit_t *v = visits_find(&S.V, x);
-      const visit_t *u = v->from >= 0 ? visits_find(&S.V, v->from) : NULL;
-      I2M_CALL_GOTO(err, done, bridge_room(&bridge, &nb, &cap, 2));
-      if (v->cls == CLS_GAP) {
-        bridge[nb++] = (point_t){x, -1};
-        gaps++;
-      }
-      /* pieces that meet only at an edge or a vertex: the voxel centres on either side lie in
-       * label-L tets, and the voxel face between them is where they must be joined */
-      if (u && u->cls != v->cls) bridge[nb++] = (point_t){x, v->from};
-      x = v->from;
+  i2m_dt_t *dt = r->dt;
+  *inserted = 0;
+  uint32_t hint = 0;
+  for (size_t i = 0; i < n; i++) {
+    while (!i2m_dt_alive(dt, hint)) hint++; /* (some tet is alive) */
+    uint32_t v;
+    i2m_dt_status_t st = i2m_dt_insert_walk(&w->ctx, p[i].x, p[i].gid, I2M_VK_FREE, hint, &v);
+    while (st == I2M_DT_FULL) {
+      i2m_dt_unlock_all(&w->ctx);
+      I2M_CALL(i2m_refine_grow(r));
+      st = i2m_dt_insert_walk(&w->ctx, p[i].x, p[i].gid, I2M_VK_FREE, hint, &v);
     }
-    i2m_debug("bridges: label %lld, piece of %lld tets: %s, %lld gap voxels (%zu voxels searched)",
-              (long long)r->img->label_value[s->label], (long long)size[k], goal >= 0 ? "bridged" : "no path",
-              (long long)gaps, S.V.n);
+    if (st != I2M_DT_OK) { /* (a vertex there already) */
+      i2m_dt_unlock_all(&w->ctx);
+      continue;
+    }
+    w->st.insertions++;
+    w->st.bridges++;
+    (*inserted)++;
+    i2m_err_t err = worker_keep_created(w);
+    if (err == I2M_OK) err = worker_process_created(w, w->created, w->ncreated);
+    i2m_dt_unlock_all(&w->ctx);
+    I2M_CALL(err);
+    hint = w->created[0];
   }
-  uint32_t hint = P->piece[s->pieces[largest]].root;
-  for (size_t i = 0; i < nb; i++) I2M_CALL_GOTO(err, done, insert_bridge(r, bridge[i], &hint, inserted));
-done:
-  i2m_free(&size);
-  i2m_free(&bridge);
-  i2m_free(&S.V.slot);
-  i2m_free(&S.q.a);
-  return err;
+  if (r->tiling) tiles_canonical_all(r); /* (the same order as where ranks inserted them) */
+  if (*inserted) pieces_invalidate(r); /* (the mesh changed) */
+  return I2M_OK;
 }
 
 i2m_err_t i2m_refine_bridge_splits(i2m_refine_t *r, int64_t min_voxels, int64_t *splits, int64_t *inserted)
 {
-  const pieces_t *P;
-  split_t *sp = NULL;
-  size_t ns = 0;
+  const i2m_pieces_global_t *G;
+  i2m_voxel_claim_t *c = NULL;
+  i2m_bridge_point_t *p = NULL;
+  size_t nc = 0, np = 0;
   *splits = *inserted = 0;
-  I2M_CALL(pieces_get(r, &P));
-  i2m_err_t err = pieces_splits(r, P, min_voxels, &sp, &ns);
-  for (size_t i = 0; i < ns && err == I2M_OK; i++) err = bridge_split(r, P, &sp[i], inserted);
-  *splits = (int64_t)ns;
-  r->bridge_rounds += ns > 0;
-  splits_free(&sp, ns);
-  if (*inserted || err != I2M_OK) pieces_invalidate(r); /* (the mesh changed) */
+  I2M_CALL(i2m_refine_groups(r, min_voxels, &G));
+  *splits = (int64_t)G->nsplits;
+  if (!G->nsplits) return I2M_OK;
+  i2m_err_t err = i2m_refine_split_claims(r, G, &c, &nc);
+  if (err == I2M_OK) err = i2m_bridge_points(r, G, c, nc, (int)r->bridge_rounds, &p, &np);
+  r->bridge_rounds++;
+  if (err == I2M_OK) err = i2m_refine_insert_bridges(r, p, np, inserted);
+  i2m_free(&c);
+  i2m_free(&p);
   return err;
 }

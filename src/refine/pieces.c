@@ -1,16 +1,18 @@
-/* Refine layer: the pieces of the labelled mesh and the image components they stand for.
+/* Refine layer: the pieces of the labelled mesh and the image components they stand for, on
+ * one process or across ranks.
  *
- * A piece is a face-connected set of kept tets of one label.  Pieces come from a union-find
- * over the tet slots, in parallel (compare-and-swap links, always from the larger root to the
- * smaller, so every piece ends with its smallest slot as root whatever the threads did).
- *
- * Each piece stands for the 6-connected image component (of its label) that holds the
- * circumcentre of its first tet whose circumcentre lies in a voxel of its label: a tet's
- * label is the label of the voxel that holds its circumcentre, so nearly always the root's.
- * The census counts, per label, the image's components, the mesh's pieces, and the large
- * components (at least min_voxels voxels) that the mesh splits: two or more pieces that are
- * not fragments (fragments.c relabels those) stand for one component.  fragments.c and
- * bridges.c build on it. */
+ * A piece is a face-connected set of kept tets of one label.  Each process finds the pieces of
+ * its own tets (its parts) with a union-find over the tet slots, in parallel (compare-and-swap
+ * links, always from the larger root to the smaller); a part says what the whole needs of it:
+ * label, tets, volume, its least tet (sorted global ids: a key that no rank or thread order
+ * changes), the volume it has in each image component (by the voxel of each tet's
+ * circumcentre: a Delaunay image mesh labels a tet there), and, for small parts, the face area
+ * it shares with each other label.  Parts across a face between ranks are joined by the dist
+ * layer (their faces there, i2m_part_face_t).  i2m_pieces_resolve then makes the pieces of the
+ * whole mesh (groups) from every part, pure arithmetic that every process count does alike:
+ * each group stands for the component that holds the circumcentres of most of its volume;
+ * fragments (fragments.c) and the components the mesh splits (bridges.c) follow from them,
+ * and a census per label for the report. */
 #include "refine_impl.h"
 
 #include <stdlib.h>
@@ -47,36 +49,27 @@ static void uf_union(_Atomic uint32_t *par, uint32_t a, uint32_t b)
   }
 }
 
-/* par[t] = the smallest slot of t's piece; the number of tets of each piece at its root in
- * cnt (saturating at PIECE_SMALL_TETS + 1). */
-static void find_pieces(const i2m_dt_t *dt, _Atomic uint32_t *par, _Atomic uint32_t *cnt)
+/* par[t] = the smallest slot of t's part. */
+static void find_parts(const i2m_dt_t *dt, _Atomic uint32_t *par)
 {
   const int64_t n = i2m_dt_ntets_slots(dt);
   I2M_OMP(omp parallel)
   {
     I2M_OMP(omp for schedule(static))
-    for (int64_t t = 0; t < n; t++) {
-      atomic_init(&par[t], (uint32_t)t);
-      atomic_init(&cnt[t], 0);
-    }
+    for (int64_t t = 0; t < n; t++) atomic_init(&par[t], (uint32_t)t);
     I2M_OMP(omp for schedule(dynamic, 4096))
     for (int64_t t = 0; t < n; t++) {
       if (!tet_kept(dt, (uint32_t)t)) continue;
       const uint16_t l = tinfo(dt, (uint32_t)t)->label;
       for (int i = 0; i < 4; i++) {
         uint32_t nb = dt->tn[4 * (size_t)t + i];
-        if (nb >= I2M_DT_REMOTE || (nb >> 2) > (uint32_t)t) continue; /* each face once */
+        if (nb >= I2M_DT_REMOTE || (nb >> 2) > (uint32_t)t) continue; /* each face once (another rank's: the dist layer) */
         if (tinfo(dt, nb >> 2)->label == l) uf_union(par, (uint32_t)t, nb >> 2); /* (a neighbour is alive) */
       }
     }
     I2M_OMP(omp for schedule(static))
-    for (int64_t t = 0; t < n; t++) {
-      if (!tet_kept(dt, (uint32_t)t)) continue;
-      const uint32_t root = uf_find(par, (uint32_t)t);
-      atomic_store_explicit(&par[t], root, memory_order_relaxed); /* (an ancestor: finds stay right) */
-      if (atomic_load_explicit(&cnt[root], memory_order_relaxed) <= PIECE_SMALL_TETS)
-        atomic_fetch_add_explicit(&cnt[root], 1, memory_order_relaxed);
-    }
+    for (int64_t t = 0; t < n; t++)
+      if (tet_kept(dt, (uint32_t)t)) atomic_store_explicit(&par[t], uf_find(par, (uint32_t)t), memory_order_relaxed);
   }
 }
 
@@ -87,30 +80,33 @@ double pieces_tet_volume(const i2m_dt_t *dt, uint32_t t)
                                 i2m_dt_xyz(dt, v[3])) / 6.0;
 }
 
-static int cmp_u64(const void *a, const void *b)
+/* ---- keys: a tet by its sorted global ids, compared lexicographically ---- */
+
+void pieces_tet_key(const i2m_dt_t *dt, uint32_t t, i2m_gidx_t k[4])
 {
-  const uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-  return (x > y) - (x < y);
+  const uint32_t *v = dt->tv + 4 * (size_t)t;
+  for (int i = 0; i < 4; i++) k[i] = i2m_dt_gid(dt, v[i]);
+  for (int a = 1; a < 4; a++)
+    for (int b = a; b > 0 && k[b] < k[b - 1]; b--) {
+      const i2m_gidx_t x = k[b];
+      k[b] = k[b - 1];
+      k[b - 1] = x;
+    }
 }
 
-/* The tets of small pieces as (root << 32 | slot), sorted (grouped by piece, in slot order). */
-static i2m_err_t small_piece_tets(const i2m_dt_t *dt, pieces_t *P)
+int pieces_key_cmp(const i2m_gidx_t a[4], const i2m_gidx_t b[4])
 {
-  const uint32_t n = i2m_dt_ntets_slots(dt);
-  size_t cap = 0;
-  for (uint32_t t = 0; t < n; t++) {
-    if (!tet_kept(dt, t)) continue;
-    const uint32_t root = atomic_load_explicit(&P->par[t], memory_order_relaxed);
-    if (atomic_load_explicit(&P->cnt[root], memory_order_relaxed) > PIECE_SMALL_TETS) continue;
-    if (P->nsmall == cap) {
-      cap = 2 * cap + 256;
-      I2M_CALL(i2m_realloc(cap, sizeof *P->small, &P->small));
-    }
-    P->small[P->nsmall++] = (uint64_t)root << 32 | t;
-  }
-  if (P->nsmall > 1) qsort(P->small, P->nsmall, sizeof *P->small, cmp_u64);
-  return I2M_OK;
+  for (int i = 0; i < 4; i++)
+    if (a[i] != b[i]) return a[i] < b[i] ? -1 : 1;
+  return 0;
 }
+
+static void key_min(i2m_gidx_t acc[4], const i2m_gidx_t k[4])
+{
+  if (pieces_key_cmp(k, acc) < 0) memcpy(acc, k, 4 * sizeof *acc);
+}
+
+/* ---- the parts of the local mesh ---- */
 
 /* The image component of voxel-frame point u if its voxel has label index lab, else -1. */
 static int64_t component_at(const i2m_refine_t *r, const double u[3], int lab)
@@ -128,112 +124,204 @@ static int64_t tet_component(const i2m_refine_t *r, uint32_t t)
   return component_at(r, g.u, tinfo(r->dt, t)->label);
 }
 
-/* The piece table (roots in slot order, so sorted by root); then par[t] becomes t's piece
- * index and cnt[t] its component (UINT32_MAX: none), in parallel. */
-static i2m_err_t list_pieces(const i2m_refine_t *r, pieces_t *P)
+/* The part table (roots in slot order); par[t] becomes t's part index. */
+static i2m_err_t list_parts(const i2m_refine_t *r, pieces_t *P)
 {
   const i2m_dt_t *dt = r->dt;
   const uint32_t n = i2m_dt_ntets_slots(dt);
   size_t cap = 0;
   for (uint32_t t = 0; t < n; t++) {
     if (!tet_kept(dt, t) || atomic_load_explicit(&P->par[t], memory_order_relaxed) != t) continue;
-    if (P->npieces == cap) {
+    if (P->nparts == cap) {
       cap = 2 * cap + 256;
-      I2M_CALL(i2m_realloc(cap, sizeof *P->piece, &P->piece));
+      I2M_CALL(i2m_realloc(cap, sizeof *P->part, &P->part));
+      I2M_CALL(i2m_realloc(cap, sizeof *P->root, &P->root));
     }
-    const bool small = atomic_load_explicit(&P->cnt[t], memory_order_relaxed) <= PIECE_SMALL_TETS;
-    atomic_store_explicit(&P->cnt[t], (uint32_t)P->npieces, memory_order_relaxed); /* (the root's index, for now) */
-    P->piece[P->npieces++] = (piece_t){t, tinfo(dt, t)->label, small, 0, 0, 0.0, -1};
+    i2m_part_t *p = &P->part[P->nparts];
+    memset(p, 0, sizeof *p);
+    p->label = tinfo(dt, t)->label;
+    for (int i = 0; i < 4; i++) p->key[i] = INT64_MAX;
+    P->root[P->nparts] = t;
+    atomic_store_explicit(&P->idx[t], (uint32_t)P->nparts, memory_order_relaxed); /* (the root's index, for now) */
+    P->nparts++;
   }
   I2M_OMP(omp parallel for schedule(static))
-  for (int64_t t = 0; t < (int64_t)n; t++) { /* every tet's piece index, from its root */
+  for (int64_t t = 0; t < (int64_t)n; t++) { /* every tet's part index, from its root */
     if (!tet_kept(dt, (uint32_t)t)) continue;
     const uint32_t root = atomic_load_explicit(&P->par[t], memory_order_relaxed);
-    atomic_store_explicit(&P->par[t], atomic_load_explicit(&P->cnt[root], memory_order_relaxed), memory_order_relaxed);
+    atomic_store_explicit(&P->par[t], atomic_load_explicit(&P->idx[root], memory_order_relaxed), memory_order_relaxed);
   }
   return I2M_OK;
 }
 
-/* Tet t's component, into cnt[t] (which then holds it: tet_comp). */
-static uint32_t note_comp(const i2m_refine_t *r, pieces_t *P, uint32_t t)
-{
-  const int64_t c = tet_component(r, t);
-  const uint32_t x = c < 0 || c >= UINT32_MAX ? UINT32_MAX : (uint32_t)c;
-  atomic_store_explicit(&P->cnt[t], x, memory_order_relaxed);
-  return x;
-}
+/* A (part, component) entry of the comp table, through a small open hash. */
+typedef struct {
+  uint64_t *key; /* part << 32 | (comp + 1), 0: empty */
+  uint32_t *at;  /* its index in P->comp */
+  size_t cap;
+} comp_index_t;
 
-static uint32_t tet_comp(const pieces_t *P, uint32_t t) { return atomic_load_explicit(&P->cnt[t], memory_order_relaxed); }
-
-/* Small pieces: their tets, volume, and the component that holds the circumcentres of the
- * largest volume of their tets (ties: the first). */
-static void describe_small(const i2m_refine_t *r, pieces_t *P)
+static i2m_err_t comp_entry(pieces_t *P, comp_index_t *H, uint32_t part, int64_t comp, size_t *cap_comp, uint32_t *out)
 {
-  const i2m_dt_t *dt = r->dt;
-  size_t k = 0;
-  while (k < P->nsmall) {
-    const uint32_t t0 = (uint32_t)P->small[k];
-    piece_t *p = &P->piece[pieces_index(P, t0)];
-    p->start = (uint32_t)k;
-    for (; k < P->nsmall && pieces_index(P, (uint32_t)P->small[k]) == pieces_index(P, t0); k++) {
-      p->n++;
-      p->volume += pieces_tet_volume(dt, (uint32_t)P->small[k]);
-      note_comp(r, P, (uint32_t)P->small[k]);
+  if (2 * (P->ncomps + 1) > H->cap) { /* rehash */
+    const size_t cap = H->cap ? 2 * H->cap : 4096;
+    uint64_t *key = NULL;
+    uint32_t *at = NULL;
+    I2M_CALL(i2m_calloc(cap, sizeof *key, &key));
+    I2M_CALL(i2m_malloc(cap, sizeof *at, &at));
+    for (size_t i = 0; i < H->cap; i++) {
+      if (!H->key[i]) continue;
+      size_t h = (size_t)((H->key[i] * 0x9E3779B97F4A7C15ull) >> 17) & (cap - 1);
+      while (key[h]) h = (h + 1) & (cap - 1);
+      key[h] = H->key[i];
+      at[h] = H->at[i];
     }
-    double best = 0;
-    for (uint32_t i = 0; i < p->n; i++) {
-      const uint32_t c = tet_comp(P, (uint32_t)P->small[p->start + i]);
-      double w = 0;
-      for (uint32_t j = 0; j < p->n && c != UINT32_MAX; j++) {
-        const uint32_t u = (uint32_t)P->small[p->start + j];
-        if (tet_comp(P, u) == c) w += fabs(pieces_tet_volume(dt, u));
-      }
-      if (c != UINT32_MAX && w > best) {
-        best = w;
-        p->comp = c;
-      }
-    }
+    i2m_free(&H->key);
+    i2m_free(&H->at);
+    H->key = key;
+    H->at = at;
+    H->cap = cap;
   }
+  const uint64_t k = (uint64_t)part << 32 | (uint64_t)(comp + 1);
+  size_t h = (size_t)((k * 0x9E3779B97F4A7C15ull) >> 17) & (H->cap - 1);
+  while (H->key[h] && H->key[h] != k) h = (h + 1) & (H->cap - 1);
+  if (!H->key[h]) {
+    if (P->ncomps == *cap_comp) {
+      *cap_comp = 2 * *cap_comp + 256;
+      I2M_CALL(i2m_realloc(*cap_comp, sizeof *P->comp, &P->comp));
+    }
+    i2m_part_comp_t *c = &P->comp[P->ncomps];
+    c->part = part;
+    c->comp = comp;
+    c->volume = 0;
+    c->seed = UINT32_MAX;
+    for (int i = 0; i < 4; i++) c->key[i] = INT64_MAX;
+    H->key[h] = k;
+    H->at[h] = (uint32_t)P->ncomps++;
+  }
+  *out = H->at[h];
+  return I2M_OK;
 }
 
-/* Large pieces: the component that holds the circumcentres of most of the volume of their
- * first PIECE_SAMPLE tets (in slot order), by a weighted majority vote in one pass (Boyer and
- * Moore's: exact whenever one component holds more than half of it, as it does for every
- * large piece: a large piece of one label lies in one component of that label). */
-#define PIECE_SAMPLE 256
-static i2m_err_t describe_large(const i2m_refine_t *r, pieces_t *P)
+/* Every part's tets, volume, least tet, and volume per image component (with the least tet in
+ * each, where the bridges' search starts); tet t's component into idx[t]. */
+static i2m_err_t describe_parts(const i2m_refine_t *r, pieces_t *P)
 {
   const i2m_dt_t *dt = r->dt;
-  double *w = NULL;
-  uint32_t *seen = NULL;
-  I2M_CALL(i2m_calloc(P->npieces ? P->npieces : 1, sizeof *w, &w));
-  i2m_err_t err = i2m_calloc(P->npieces ? P->npieces : 1, sizeof *seen, &seen);
   const uint32_t n = i2m_dt_ntets_slots(dt);
+  I2M_OMP(omp parallel for schedule(dynamic, 4096))
+  for (int64_t t = 0; t < (int64_t)n; t++) {
+    if (!tet_kept(dt, (uint32_t)t)) continue;
+    const int64_t c = tet_component(r, (uint32_t)t);
+    atomic_store_explicit(&P->idx[t], c < 0 || c >= UINT32_MAX ? UINT32_MAX : (uint32_t)c, memory_order_relaxed);
+  }
+  comp_index_t H = {NULL, NULL, 0};
+  size_t cap_comp = 0;
+  i2m_err_t err = I2M_OK;
   for (uint32_t t = 0; t < n && err == I2M_OK; t++) {
     if (!tet_kept(dt, t)) continue;
-    const uint32_t pi = pieces_index(P, t);
-    piece_t *p = &P->piece[pi];
-    if (p->small || seen[pi] >= PIECE_SAMPLE) {
-      atomic_store_explicit(&P->cnt[t], UINT32_MAX, memory_order_relaxed); /* (not looked at) */
-      continue;
-    }
-    seen[pi]++;
-    const uint32_t c = note_comp(r, P, t);
-    if (c == UINT32_MAX) continue;
+    const uint32_t pi = atomic_load_explicit(&P->par[t], memory_order_relaxed);
+    i2m_part_t *p = &P->part[pi];
     const double v = fabs(pieces_tet_volume(dt, t));
-    if (p->comp == (int64_t)c) w[pi] += v;
-    else if (w[pi] >= v) w[pi] -= v;
-    else {
-      p->comp = c;
-      w[pi] = v - w[pi];
+    i2m_gidx_t k[4];
+    pieces_tet_key(dt, t, k);
+    p->ntets++;
+    p->volume += v;
+    key_min(p->key, k);
+    const uint32_t c = atomic_load_explicit(&P->idx[t], memory_order_relaxed);
+    if (c == UINT32_MAX) continue;
+    uint32_t e;
+    err = comp_entry(P, &H, pi, c, &cap_comp, &e);
+    if (err != I2M_OK) break;
+    i2m_part_comp_t *ce = &P->comp[e];
+    ce->volume += v;
+    if (pieces_key_cmp(k, ce->key) < 0) {
+      memcpy(ce->key, k, sizeof k);
+      ce->seed = t;
     }
   }
-  i2m_free(&w);
-  i2m_free(&seen);
+  i2m_free(&H.key);
+  i2m_free(&H.at);
+  for (size_t i = 0; i < P->nparts; i++) P->part[i].small = P->part[i].ntets <= PIECE_SMALL_TETS;
   return err;
 }
 
-i2m_err_t pieces_get(i2m_refine_t *r, const pieces_t **out)
+/* The face area each small part shares with each other label (0: outside the mesh), across
+ * faces between ranks too (the labels there, i2m_refine_dist_ghosts). */
+static i2m_err_t describe_areas(const i2m_refine_t *r, pieces_t *P)
+{
+  static const int FACE[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
+  const i2m_dt_t *dt = r->dt;
+  const uint32_t n = i2m_dt_ntets_slots(dt);
+  size_t cap = 0;
+  for (uint32_t t = 0; t < n; t++) {
+    if (!tet_kept(dt, t)) continue;
+    const uint32_t pi = atomic_load_explicit(&P->par[t], memory_order_relaxed);
+    if (!P->part[pi].small) continue;
+    const uint16_t l = tinfo(dt, t)->label;
+    const uint32_t *v = dt->tv + 4 * (size_t)t;
+    for (int i = 0; i < 4; i++) {
+      const uint32_t nb = dt->tn[4 * (size_t)t + i];
+      const uint16_t m = nb == I2M_DT_NONE ? 0 : nb == I2M_DT_REMOTE ? dist_ghost_label(r, t, i) : tinfo(dt, nb >> 2)->label;
+      if (m == l) continue; /* a face inside the piece */
+      const double *a = i2m_dt_xyz(dt, v[FACE[i][0]]), *b = i2m_dt_xyz(dt, v[FACE[i][1]]), *d = i2m_dt_xyz(dt, v[FACE[i][2]]);
+      const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
+      const double x = u[1] * w[2] - u[2] * w[1], y = u[2] * w[0] - u[0] * w[2], z = u[0] * w[1] - u[1] * w[0];
+      if (P->nareas == cap) {
+        cap = 2 * cap + 256;
+        I2M_CALL(i2m_realloc(cap, sizeof *P->area, &P->area));
+      }
+      P->area[P->nareas++] = (i2m_part_area_t){.area = sqrt(x * x + y * y + z * z), .part = pi, .label = m};
+    }
+  }
+  return I2M_OK;
+}
+
+/* The faces between a local kept tet and another rank's (the dist layer joins parts there). */
+static i2m_err_t describe_faces(const i2m_refine_t *r, pieces_t *P)
+{
+  const i2m_dt_t *dt = r->dt;
+  if (!dist_tracking(r)) return I2M_OK;
+  const uint32_t n = i2m_dt_ntets_slots(dt);
+  size_t cap = 0;
+  for (uint32_t t = 0; t < n; t++) {
+    if (!tet_kept(dt, t)) continue;
+    for (int i = 0; i < 4; i++) {
+      if (dt->tn[4 * (size_t)t + i] != I2M_DT_REMOTE) continue;
+      if (P->nfaces == cap) {
+        cap = 2 * cap + 256;
+        I2M_CALL(i2m_realloc(cap, sizeof *P->face, &P->face));
+      }
+      i2m_part_face_t *f = &P->face[P->nfaces++];
+      dist_face(r, t, i, f->key, &f->cell);
+      f->part = atomic_load_explicit(&P->par[t], memory_order_relaxed);
+      f->label = tinfo(dt, t)->label;
+    }
+  }
+  return I2M_OK;
+}
+
+i2m_err_t pieces_build(i2m_refine_t *r, pieces_t *P)
+{
+  const i2m_dt_t *dt = r->dt;
+  const uint32_t n = i2m_dt_ntets_slots(dt);
+  memset(P, 0, sizeof *P);
+  if (!r->pieces_ic.nruns) I2M_CALL(i2m_edt_components(r->edt, &r->pieces_ic));
+  i2m_err_t err = I2M_OK;
+  I2M_CALL_GOTO(err, fail, i2m_malloc(n ? n : 1, sizeof *P->par, &P->par));
+  I2M_CALL_GOTO(err, fail, i2m_malloc(n ? n : 1, sizeof *P->idx, &P->idx));
+  find_parts(dt, P->par);
+  I2M_CALL_GOTO(err, fail, list_parts(r, P));
+  I2M_CALL_GOTO(err, fail, describe_parts(r, P));
+  I2M_CALL_GOTO(err, fail, describe_areas(r, P));
+  I2M_CALL_GOTO(err, fail, describe_faces(r, P));
+  return I2M_OK;
+fail:
+  pieces_free(P);
+  return err;
+}
+
+i2m_err_t pieces_get(i2m_refine_t *r, pieces_t **out)
 {
   if (!r->pieces_valid) {
     pieces_free(&r->pieces);
@@ -250,106 +338,298 @@ void pieces_invalidate(i2m_refine_t *r)
   r->pieces_valid = false;
 }
 
-i2m_err_t pieces_build(i2m_refine_t *r, pieces_t *P)
-{
-  const i2m_dt_t *dt = r->dt;
-  const uint32_t n = i2m_dt_ntets_slots(dt);
-  memset(P, 0, sizeof *P);
-  if (!r->pieces_ic.nruns) I2M_CALL(i2m_edt_components(r->edt, &r->pieces_ic));
-  i2m_err_t err = I2M_OK;
-  I2M_CALL_GOTO(err, fail, i2m_malloc(n ? n : 1, sizeof *P->par, &P->par));
-  I2M_CALL_GOTO(err, fail, i2m_malloc(n ? n : 1, sizeof *P->cnt, &P->cnt));
-  find_pieces(dt, P->par, P->cnt);
-  I2M_CALL_GOTO(err, fail, small_piece_tets(dt, P));
-  I2M_CALL_GOTO(err, fail, list_pieces(r, P));
-  describe_small(r, P);
-  I2M_CALL_GOTO(err, fail, describe_large(r, P));
-  return I2M_OK;
-fail:
-  pieces_free(P);
-  return err;
-}
-
 void pieces_free(pieces_t *P)
 {
   i2m_free(&P->par);
-  i2m_free(&P->cnt);
-  i2m_free(&P->small);
-  i2m_free(&P->piece);
-  P->npieces = P->nsmall = 0;
+  i2m_free(&P->idx);
+  i2m_free(&P->part);
+  i2m_free(&P->root);
+  i2m_free(&P->comp);
+  i2m_free(&P->area);
+  i2m_free(&P->face);
+  i2m_pieces_global_free(&P->global);
+  P->nparts = P->ncomps = P->nareas = P->nfaces = 0;
 }
 
 uint32_t pieces_index(const pieces_t *P, uint32_t t) { return atomic_load_explicit(&P->par[t], memory_order_relaxed); }
 
-bool pieces_is_fragment(const i2m_refine_t *r, const piece_t *p)
+i2m_err_t i2m_refine_parts(i2m_refine_t *r, i2m_parts_t *out)
+{
+  pieces_t *P;
+  I2M_CALL(pieces_get(r, &P));
+  *out = (i2m_parts_t){P->nparts, P->ncomps, P->nareas, P->nfaces, P->part, P->comp, P->area, P->face};
+  return I2M_OK;
+}
+
+/* ---- the pieces of the whole mesh, from every rank's parts ---- */
+
+static int64_t gfind(int64_t *par, int64_t x)
+{
+  while (par[x] != x) {
+    par[x] = par[par[x]];
+    x = par[x];
+  }
+  return x;
+}
+
+bool pieces_group_is_fragment(const i2m_refine_t *r, const i2m_group_t *g)
 {
   const double voxel_volume = r->img->spacing[0] * r->img->spacing[1] * r->img->spacing[2];
-  if (!p->small || p->comp < 0 || p->volume >= PIECE_FRAGMENT_VOXELS * voxel_volume) return false;
-  const int64_t iv = r->pieces_ic.size[p->comp];
-  return iv >= PIECE_FRAGMENT_MIN_IMAGE_VOXELS && p->volume * PIECE_FRAGMENT_SHARE < (double)iv * voxel_volume;
+  if (g->ntets > PIECE_SMALL_TETS || g->comp < 0 || g->volume >= PIECE_FRAGMENT_VOXELS * voxel_volume) return false;
+  const int64_t iv = r->pieces_ic.size[g->comp];
+  return iv >= PIECE_FRAGMENT_MIN_IMAGE_VOXELS && g->volume * PIECE_FRAGMENT_SHARE < (double)iv * voxel_volume;
 }
 
-static int cmp_piece_comp(const void *a, const void *b)
+/* Groups: the union-find over all parts, then each group's sums (parts in order). */
+static i2m_err_t make_groups(const i2m_parts_t *all, const int64_t *pairs, size_t npairs, i2m_pieces_global_t *G)
 {
-  const piece_t *x = *(const piece_t *const *)a, *y = *(const piece_t *const *)b;
-  if (x->comp != y->comp) return x->comp < y->comp ? -1 : 1;
-  return (x->root > y->root) - (x->root < y->root);
-}
-
-i2m_err_t pieces_splits(const i2m_refine_t *r, const pieces_t *P, int64_t min_voxels, split_t **out, size_t *nout)
-{
-  piece_t **by = NULL;
-  split_t *sp = NULL;
-  size_t n = 0, ns = 0;
-  *out = NULL;
-  *nout = 0;
-  if (P->npieces == 0) return I2M_OK;
-  I2M_CALL(i2m_malloc(P->npieces, sizeof *by, &by));
-  for (size_t i = 0; i < P->npieces; i++) { /* the pieces that are not fragments, of large components */
-    piece_t *p = &P->piece[i];
-    if (p->comp >= 0 && r->pieces_ic.size[p->comp] >= min_voxels && !pieces_is_fragment(r, p)) by[n++] = p;
+  int64_t *par = NULL;
+  const size_t n = all->nparts;
+  I2M_CALL(i2m_malloc(n ? n : 1, sizeof *par, &par));
+  for (size_t i = 0; i < n; i++) par[i] = (int64_t)i;
+  for (size_t k = 0; k < npairs; k++) {
+    const int64_t a = gfind(par, pairs[2 * k]), b = gfind(par, pairs[2 * k + 1]);
+    if (a != b) par[a < b ? b : a] = a < b ? a : b;
   }
-  qsort(by, n, sizeof *by, cmp_piece_comp);
+  G->nparts = n;
+  i2m_err_t err = i2m_malloc(n ? n : 1, sizeof *G->part_group, &G->part_group);
+  if (err == I2M_OK) err = i2m_calloc(n ? n : 1, sizeof *G->group, &G->group);
+  for (size_t i = 0; i < n && err == I2M_OK; i++) { /* groups numbered by their first part */
+    if (par[i] == (int64_t)i) { /* a root (roots are the least parts of their groups: their own parent) */
+      i2m_group_t *g = &G->group[G->ngroups];
+      g->label = all->part[i].label;
+      g->comp = -1;
+      g->relabel = -1;
+      for (int k = 0; k < 4; k++) g->key[k] = g->seed[k] = INT64_MAX;
+      par[i] = -1 - (int64_t)G->ngroups++; /* (roots now hold their group) */
+    }
+  }
+  for (size_t i = 0; i < n && err == I2M_OK; i++) {
+    int64_t x = (int64_t)i;
+    while (par[x] >= 0) x = par[x];
+    G->part_group[i] = -1 - par[x];
+  }
+  for (size_t i = 0; i < n && err == I2M_OK; i++) {
+    i2m_group_t *g = &G->group[G->part_group[i]];
+    g->ntets += all->part[i].ntets;
+    g->volume += all->part[i].volume;
+    key_min(g->key, all->part[i].key);
+  }
+  i2m_free(&par);
+  return err;
+}
+
+typedef struct {
+  int64_t group, comp;
+  double volume;
+  i2m_gidx_t key[4];
+} gcomp_t;
+
+static int cmp_gcomp(const void *a, const void *b)
+{
+  const gcomp_t *x = a, *y = b;
+  if (x->group != y->group) return x->group < y->group ? -1 : 1;
+  return (x->comp > y->comp) - (x->comp < y->comp);
+}
+
+/* Each group's component: the one that holds the circumcentres of most of its volume (ties:
+ * the smaller component), and its least tet there. */
+static i2m_err_t group_components(const i2m_parts_t *all, i2m_pieces_global_t *G)
+{
+  gcomp_t *e = NULL;
+  I2M_CALL(i2m_malloc(all->ncomps ? all->ncomps : 1, sizeof *e, &e));
+  for (size_t i = 0; i < all->ncomps; i++) {
+    const i2m_part_comp_t *c = &all->comp[i];
+    e[i] = (gcomp_t){G->part_group[c->part], c->comp, c->volume, {c->key[0], c->key[1], c->key[2], c->key[3]}};
+  }
+  if (all->ncomps > 1) qsort(e, all->ncomps, sizeof *e, cmp_gcomp);
+  for (size_t i = 0, j; i < all->ncomps; i = j) { /* the parts' sums per (group, component) */
+    double v = 0;
+    i2m_gidx_t k[4] = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+    for (j = i; j < all->ncomps && e[j].group == e[i].group && e[j].comp == e[i].comp; j++) {
+      v += e[j].volume;
+      key_min(k, e[j].key);
+    }
+    i2m_group_t *g = &G->group[e[i].group];
+    if (v > g->comp_volume) {
+      g->comp_volume = v;
+      g->comp = e[i].comp;
+      memcpy(g->seed, k, sizeof k);
+    }
+  }
+  i2m_free(&e);
+  return I2M_OK;
+}
+
+typedef struct {
+  int64_t group;
+  uint16_t label;
+  double area;
+} garea_t;
+
+static int cmp_garea(const void *a, const void *b)
+{
+  const garea_t *x = a, *y = b;
+  if (x->group != y->group) return x->group < y->group ? -1 : 1;
+  return (x->label > y->label) - (x->label < y->label);
+}
+
+/* Fragments: a small group of a large enough component (pieces_group_is_fragment) that is not
+ * the largest small group of a label without a large one takes the label it shares the most
+ * face area with (ties: the smaller label index), by the labels before any relabelling. */
+static i2m_err_t decide_fragments(const i2m_refine_t *r, const i2m_parts_t *all, i2m_pieces_global_t *G)
+{
+  const int nl = r->img->nlabels;
+  int64_t *main_group = NULL;
+  uint8_t *big = NULL;
+  garea_t *e = NULL;
   i2m_err_t err = I2M_OK;
-  for (size_t i = 0, j; i < n; i = j) {
-    for (j = i + 1; j < n && by[j]->comp == by[i]->comp; j++) {
+  I2M_CALL_GOTO(err, done, i2m_calloc((size_t)nl, sizeof *big, &big));
+  I2M_CALL_GOTO(err, done, i2m_malloc((size_t)nl, sizeof *main_group, &main_group));
+  for (int l = 0; l < nl; l++) main_group[l] = -1;
+  for (size_t k = 0; k < G->ngroups; k++)
+    if (G->group[k].ntets > PIECE_SMALL_TETS) big[G->group[k].label] = 1;
+  for (size_t k = 0; k < G->ngroups; k++) { /* (ties: the least key) */
+    const i2m_group_t *g = &G->group[k];
+    if (big[g->label]) continue;
+    const int64_t m = main_group[g->label];
+    if (m < 0 || g->volume > G->group[m].volume ||
+        (g->volume == G->group[m].volume && pieces_key_cmp(g->key, G->group[m].key) < 0))
+      main_group[g->label] = (int64_t)k;
+  }
+  I2M_CALL_GOTO(err, done, i2m_malloc(all->nareas ? all->nareas : 1, sizeof *e, &e));
+  for (size_t i = 0; i < all->nareas; i++)
+    e[i] = (garea_t){G->part_group[all->area[i].part], all->area[i].label, all->area[i].area};
+  if (all->nareas > 1) qsort(e, all->nareas, sizeof *e, cmp_garea);
+  for (size_t i = 0, j; i < all->nareas; i = j) {
+    const int64_t gi = e[i].group;
+    i2m_group_t *g = &G->group[gi];
+    const bool fragment = main_group[g->label] != gi && pieces_group_is_fragment(r, g);
+    double best = -1;
+    int best_label = 0;
+    for (j = i; j < all->nareas && e[j].group == gi;) {
+      size_t k = j;
+      double a = 0;
+      for (; k < all->nareas && e[k].group == gi && e[k].label == e[j].label; k++) a += e[k].area;
+      if (a > best) {
+        best = a;
+        best_label = e[j].label;
+      }
+      j = k;
+    }
+    if (fragment) {
+      g->relabel = best_label;
+      G->fragments++;
+      G->fragment_tets += g->ntets;
+    }
+  }
+done:
+  i2m_free(&main_group);
+  i2m_free(&big);
+  i2m_free(&e);
+  return err;
+}
+
+/* Groups by component, the largest first (ties: the least key). */
+static const i2m_pieces_global_t *sort_G;
+static int cmp_by_comp(const void *a, const void *b)
+{
+  const i2m_group_t *x = &sort_G->group[*(const int64_t *)a], *y = &sort_G->group[*(const int64_t *)b];
+  if (x->comp != y->comp) return x->comp < y->comp ? -1 : 1;
+  if (x->ntets != y->ntets) return x->ntets > y->ntets ? -1 : 1;
+  return pieces_key_cmp(x->key, y->key);
+}
+
+/* The components of at least min_voxels that two or more groups (not fragments) stand for. */
+static i2m_err_t find_splits(const i2m_refine_t *r, int64_t min_voxels, i2m_pieces_global_t *G)
+{
+  int64_t *by = NULL;
+  size_t n = 0;
+  I2M_CALL(i2m_malloc(G->ngroups ? G->ngroups : 1, sizeof *by, &by));
+  for (size_t k = 0; k < G->ngroups; k++) {
+    const i2m_group_t *g = &G->group[k];
+    if (g->comp >= 0 && r->pieces_ic.size[g->comp] >= min_voxels && g->relabel < 0 && !pieces_group_is_fragment(r, g))
+      by[n++] = (int64_t)k;
+  }
+  sort_G = G; /* (qsort has no context argument in C11) */
+  if (n > 1) qsort(by, n, sizeof *by, cmp_by_comp);
+  i2m_err_t err = I2M_OK;
+  for (size_t i = 0, j; i < n && err == I2M_OK; i = j) {
+    for (j = i + 1; j < n && G->group[by[j]].comp == G->group[by[i]].comp; j++) {
     }
     if (j - i < 2) continue;
-    if (ns % 16 == 0) I2M_CALL_GOTO(err, done, i2m_realloc(ns + 16, sizeof *sp, &sp));
-    split_t *s = &sp[ns++];
-    memset(s, 0, sizeof *s);
-    s->comp = by[i]->comp;
-    s->label = by[i]->label;
-    s->npieces = (uint32_t)(j - i);
-    I2M_CALL_GOTO(err, done, i2m_malloc(s->npieces, sizeof *s->pieces, &s->pieces));
-    for (size_t k = i; k < j; k++) s->pieces[k - i] = (uint32_t)(by[k] - P->piece);
+    if (G->nsplits % 16 == 0) err = i2m_realloc(G->nsplits + 16, sizeof *G->split, &G->split);
+    if (err != I2M_OK) break;
+    i2m_split_t *s = &G->split[G->nsplits++];
+    s->comp = G->group[by[i]].comp;
+    s->label = G->group[by[i]].label;
+    s->ngroups = (uint32_t)(j - i);
+    err = i2m_malloc(s->ngroups, sizeof *s->groups, &s->groups);
+    for (size_t k = i; k < j && err == I2M_OK; k++) s->groups[k - i] = by[k]; /* (the largest first) */
   }
-  *out = sp;
-  *nout = ns;
-  sp = NULL;
-done:
-  splits_free(&sp, ns);
   i2m_free(&by);
   return err;
 }
 
-void splits_free(split_t **s, size_t n)
+i2m_err_t i2m_pieces_resolve(const i2m_refine_t *r, const i2m_parts_t *all, const int64_t *pairs, size_t npairs,
+                             int64_t min_voxels, i2m_pieces_global_t *G)
 {
-  for (size_t i = 0; *s && i < n; i++) i2m_free(&(*s)[i].pieces);
-  i2m_free(s);
+  memset(G, 0, sizeof *G);
+  i2m_err_t err = make_groups(all, pairs, npairs, G);
+  if (err == I2M_OK) err = group_components(all, G);
+  if (err == I2M_OK) err = decide_fragments(r, all, G);
+  if (err == I2M_OK) err = find_splits(r, min_voxels, G);
+  if (err != I2M_OK) i2m_pieces_global_free(G);
+  return err;
 }
 
-i2m_err_t i2m_refine_census(i2m_refine_t *r, int64_t min_voxels, i2m_label_pieces_t **out)
+void i2m_pieces_global_free(i2m_pieces_global_t *G)
+{
+  for (size_t i = 0; G->split && i < G->nsplits; i++) i2m_free(&G->split[i].groups);
+  i2m_free(&G->split);
+  i2m_free(&G->group);
+  i2m_free(&G->part_group);
+  memset(G, 0, sizeof *G);
+}
+
+/* ---- the pieces of the whole mesh in r ---- */
+
+i2m_err_t i2m_refine_groups(i2m_refine_t *r, int64_t min_voxels, const i2m_pieces_global_t **out)
+{
+  pieces_t *P;
+  I2M_CALL(pieces_get(r, &P));
+  if (!P->global_valid) { /* (one process: its parts are the whole) */
+    I2M_CHECK(!dist_tracking(r), I2M_ERR_INTERNAL, "the pieces of the mesh were not joined across the ranks");
+    i2m_parts_t all;
+    I2M_CALL(i2m_refine_parts(r, &all));
+    I2M_CALL(i2m_pieces_resolve(r, &all, NULL, 0, min_voxels, &P->global));
+    P->global_valid = true;
+  }
+  *out = &P->global;
+  return I2M_OK;
+}
+
+i2m_err_t i2m_refine_set_groups(i2m_refine_t *r, i2m_pieces_global_t *G)
+{
+  pieces_t *P;
+  I2M_CALL(pieces_get(r, &P));
+  I2M_CHECK(G->nparts == P->nparts, I2M_ERR_INTERNAL, "pieces for %zu parts, %zu here", G->nparts, P->nparts);
+  i2m_pieces_global_free(&P->global);
+  P->global = *G;
+  memset(G, 0, sizeof *G);
+  P->global_valid = true;
+  return I2M_OK;
+}
+
+/* ---- the census per label ---- */
+
+i2m_err_t i2m_refine_census_of(i2m_refine_t *r, const i2m_pieces_global_t *G, int64_t min_voxels,
+                               i2m_label_pieces_t **out)
 {
   const int nl = r->img->nlabels;
   i2m_label_pieces_t *L = NULL;
-  const pieces_t *P;
-  split_t *sp = NULL;
-  size_t ns = 0;
-  *out = NULL;
-  I2M_CALL(pieces_get(r, &P));
-  i2m_err_t err = I2M_OK;
-  I2M_CALL_GOTO(err, done, i2m_calloc((size_t)nl, sizeof *L, &L));
+  if (!r->pieces_ic.nruns) I2M_CALL(i2m_edt_components(r->edt, &r->pieces_ic));
+  I2M_CALL(i2m_calloc((size_t)nl, sizeof *L, &L));
   for (int l = 0; l < nl; l++) L[l].value = r->img->label_value[l];
   const i2m_components_t *ic = &r->pieces_ic;
   for (int64_t k = 0; k < ic->nruns; k++) {
@@ -357,25 +637,16 @@ i2m_err_t i2m_refine_census(i2m_refine_t *r, int64_t min_voxels, i2m_label_piece
     L[ic->lab[k]].image_components++;
     L[ic->lab[k]].large_components += ic->size[k] >= min_voxels;
   }
-  for (size_t i = 0; i < P->npieces; i++) L[P->piece[i].label].mesh_pieces++;
-  I2M_CALL_GOTO(err, done, pieces_splits(r, P, min_voxels, &sp, &ns));
-  for (size_t i = 0; i < ns; i++) {
-    L[sp[i].label].split_components++;
-    if (i2m_log_get_level() >= I2M_LOG_DEBUG)
-      for (uint32_t k = 0; k < sp[i].npieces; k++) {
-        const piece_t *p = &P->piece[sp[i].pieces[k]];
-        double c[3] = {0, 0, 0};
-        for (int j = 0; j < 4; j++)
-          for (int a = 0; a < 3; a++) c[a] += 0.25 * i2m_dt_xyz(r->dt, r->dt->tv[4 * (size_t)p->root + j])[a];
-        i2m_debug("census: label %lld component of %lld voxels: piece %u: %s, volume %g, at (%g, %g, %g)",
-                  (long long)L[sp[i].label].value, (long long)r->pieces_ic.size[sp[i].comp], k, p->small ? "small" : "large",
-                  p->volume, c[0], c[1], c[2]);
-      }
-  }
+  for (size_t i = 0; i < G->ngroups; i++) L[G->group[i].label].mesh_pieces++;
+  for (size_t i = 0; i < G->nsplits; i++) L[G->split[i].label].split_components++;
   *out = L;
-  L = NULL;
-done:
-  splits_free(&sp, ns);
-  i2m_free(&L);
-  return err;
+  return I2M_OK;
+}
+
+i2m_err_t i2m_refine_census(i2m_refine_t *r, int64_t min_voxels, i2m_label_pieces_t **out)
+{
+  const i2m_pieces_global_t *G = NULL;
+  *out = NULL;
+  I2M_CALL(i2m_refine_groups(r, min_voxels, &G));
+  return i2m_refine_census_of(r, G, min_voxels, out);
 }

@@ -99,49 +99,35 @@ typedef struct {
 #define PIECE_FRAGMENT_MIN_IMAGE_VOXELS 64  /* lies in an image component at least this large */
 #define PIECE_FRAGMENT_SHARE 8.0            /* and holds less than 1/8 of it */
 
-/** A face-connected piece of the kept tets of one label. */
+/** The parts of the local mesh (see i2m_parts_t), and the pieces of the whole mesh. */
 typedef struct {
-  uint32_t root;     /* its smallest tet slot */
-  uint16_t label;
-  bool small;        /* at most PIECE_SMALL_TETS tets */
-  uint32_t start, n; /* small pieces: their tets are the low words of small[start .. start + n) */
-  double volume;     /* small pieces: their volume (mm^3) */
-  int64_t comp;      /* the image component it stands for (root run in pieces_ic), -1: none */
-} piece_t;
-
-typedef struct {
-  _Atomic uint32_t *par, *cnt; /* owned: [slots] each kept tet's piece index (pieces_index); its image
-                                  component if it was looked at (tets of small pieces, the first
-                                  tets of large ones), else UINT32_MAX (while building: roots, counts) */
-  uint64_t *small;             /* owned: [nsmall] root << 32 | slot of the tets of small pieces, sorted */
-  size_t nsmall;
-  piece_t *piece;              /* owned: [npieces] sorted by root */
-  size_t npieces;
+  _Atomic uint32_t *par; /* owned: [slots] each kept tet's part (pieces_index) */
+  _Atomic uint32_t *idx; /* owned: [slots] scratch: each kept tet's image component (UINT32_MAX: none) */
+  uint32_t *root;        /* owned: [nparts] each part's smallest slot */
+  i2m_part_t *part;      /* owned: [nparts] in the order of their roots */
+  i2m_part_comp_t *comp; /* owned: [ncomps] */
+  i2m_part_area_t *area; /* owned: [nareas] */
+  i2m_part_face_t *face; /* owned: [nfaces] */
+  size_t nparts, ncomps, nareas, nfaces;
+  i2m_pieces_global_t global; /* the pieces of the whole mesh, when global_valid */
+  bool global_valid;
 } pieces_t;
 
-/** An image component of at least the census's size that two or more pieces (not fragments)
- *  stand for. */
-typedef struct {
-  int64_t comp;   /* its root run in pieces_ic */
-  uint16_t label;
-  uint32_t npieces;
-  uint32_t *pieces; /* owned: [npieces] the pieces' indices in pieces_t, in slot order */
-} split_t;
-
-/** The pieces of the current labelled mesh (builds r->pieces_ic on first use). */
+/** The parts of the current labelled mesh (builds r->pieces_ic on first use). */
 i2m_err_t pieces_build(i2m_refine_t *r, pieces_t *P);
 /** The same, kept in r until the mesh or a label changes (pieces_invalidate): the component
  *  rule's last round, the fragments' repair and the census share one. */
-i2m_err_t pieces_get(i2m_refine_t *r, const pieces_t **out);
+i2m_err_t pieces_get(i2m_refine_t *r, pieces_t **out);
 void pieces_invalidate(i2m_refine_t *r);
 void pieces_free(pieces_t *P);
-/** The index of kept tet t's piece in P->piece. */
+/** The index of kept tet t's part. */
 uint32_t pieces_index(const pieces_t *P, uint32_t t);
-/** Is this piece a fragment (fragments.c gives it a neighbour's label)? */
-bool pieces_is_fragment(const i2m_refine_t *r, const piece_t *p);
-/** The image components of at least min_voxels that the mesh splits. */
-i2m_err_t pieces_splits(const i2m_refine_t *r, const pieces_t *P, int64_t min_voxels, split_t **out, size_t *nout);
-void splits_free(split_t **s, size_t n);
+/** Is this piece a fragment by its size and component (fragments.c gives it a neighbour's
+ *  label unless it is its label's main piece)? */
+bool pieces_group_is_fragment(const i2m_refine_t *r, const i2m_group_t *g);
+/** A tet's key: its sorted global ids; keys compared lexicographically. */
+void pieces_tet_key(const i2m_dt_t *dt, uint32_t t, i2m_gidx_t k[4]);
+int pieces_key_cmp(const i2m_gidx_t a[4], const i2m_gidx_t b[4]);
 double pieces_tet_volume(const i2m_dt_t *dt, uint32_t t);
 
 /* ---- tiles (tiles.c): the deterministic mode's, and the octree subregions of the dist layer
@@ -190,6 +176,9 @@ typedef struct {
   tetref_t *tets;     /* dist: the tile's tets (whose centroid it holds), stale entries included */
   uint32_t ntets, cap_tets, live_tets; /* (live_tets: when the list was last compacted) */
   bool held;          /* dist: this process holds the tile's tets */
+  bool dirty;         /* its lists got elements in an order of no one's (tiles_canonical) */
+  i2m_bridge_point_t *pts, *wpts; /* dist: bridge points for its task, its wide task (inserted first) */
+  uint32_t npts, cap_pts, nwpts, cap_wpts;
 } tile_t;
 
 typedef struct {
@@ -211,6 +200,7 @@ typedef struct {
   int8_t *level;                /* owned: [slots] reclassification: each tet's list (-1: none) */
   i2m_gidx_t gid_base;          /* ids of this tiling: gid_base + tile << 36 + k */
   int64_t rounds, sequential_ops, wide_tasks;
+  int64_t stuck_points;         /* bridge points that not even a wide task could insert */
 } tiling_t;
 
 struct i2m_refine_worker {
@@ -348,6 +338,13 @@ int tiles_color(const tiling_t *g, uint32_t id);
  *  them back). */
 void tiles_bind(i2m_refine_worker_t *w, uint32_t id, bool wide);
 void tiles_unbind(i2m_refine_worker_t *w);
+/** A tile's lists in an order of their own: stale entries dropped, elements whose tet the zone
+ *  cannot hold moved to the wide lists, each list sorted by tet key, removals by global id.
+ *  After bridge points went in: one process inserts them all at once, ranks tile by tile. */
+void tiles_canonical(i2m_refine_t *r, uint32_t id);
+void tiles_canonical_all(i2m_refine_t *r);
+/** Dist: bridge point p joins tile id's work (its task inserts it first). */
+i2m_err_t tiles_add_point(i2m_refine_t *r, uint32_t id, const i2m_bridge_point_t *p, bool wide);
 /** Is world point x in the zone of the worker's tile (always, without a tile)? */
 bool tiles_zone_holds(const i2m_refine_worker_t *w, const double x[3]);
 /** Does the ball (centre c, squared radius r2) lie in that zone (always, without a tile)? */
@@ -361,6 +358,8 @@ i2m_err_t dist_note_tets(i2m_refine_worker_t *w, const uint32_t *t, uint32_t n);
 i2m_err_t dist_note_vertex(i2m_refine_worker_t *w, uint32_t v);
 /** The label index of the tet across face i of t, another rank's (i2m_refine_dist_ghosts). */
 uint16_t dist_ghost_label(const i2m_refine_t *r, uint32_t t, int i);
+/** Face i of t (another rank's on the other side): its sorted global ids and the cell across. */
+void dist_face(const i2m_refine_t *r, uint32_t t, int i, i2m_gidx_t key[3], int32_t *cell);
 
 /* worker.c */
 i2m_err_t worker_init(i2m_refine_worker_t *w, i2m_refine_t *r, uint32_t owner, bool locking);
@@ -368,6 +367,8 @@ void worker_free(i2m_refine_worker_t *w);
 i2m_err_t worker_push(i2m_refine_worker_t *w, uint32_t t);
 i2m_err_t worker_push_entry(i2m_refine_worker_t *w, int level, const bad_t *b);
 i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, uint32_t n);
+/** Copies the tets the last operation made (ctx->newt) into w->created. */
+i2m_err_t worker_keep_created(i2m_refine_worker_t *w);
 /** Treats one pending removal or one bad element: an I2M_STEP_* result. */
 int worker_step(i2m_refine_worker_t *w);
 

@@ -358,7 +358,7 @@ bool i2m_refine_holds(const i2m_refine_t *r, uint32_t id) { return r->tiling->ti
 /* ---- the submesh buffer ---- */
 
 typedef struct {
-  uint32_t magic, tile, ntets, nverts, next, nq[NLEVELS], nwq[NLEVELS], npend, nwpend, grant;
+  uint32_t magic, tile, ntets, nverts, next, nq[NLEVELS], nwq[NLEVELS], npend, nwpend, grant, npts, nwpts, dirty;
   i2m_gidx_t gid_next;
   uint64_t seq;
 } pack_header_t;
@@ -550,6 +550,11 @@ i2m_err_t i2m_refine_pack(i2m_refine_t *r, uint32_t id, void **buf, size_t *len)
   if (err == I2M_OK) {
     h.npend = pack_pending(tl->pend, tl->npend, &B);
     h.nwpend = pack_pending(tl->wpend, tl->nwpend, &B);
+    h.npts = tl->npts;
+    h.nwpts = tl->nwpts;
+    h.dirty = tl->dirty;
+    bytes_put(&B, tl->pts, tl->npts * sizeof *tl->pts);
+    bytes_put(&B, tl->wpts, tl->nwpts * sizeof *tl->wpts);
   }
   unnumber(S, tets, nt, verts, nv);
   i2m_free(&tets);
@@ -630,6 +635,8 @@ i2m_err_t i2m_refine_drop(i2m_refine_t *r, uint32_t id)
   i2m_free(&verts);
   for (int l = 0; l < NLEVELS; l++) tl->q[l].n = tl->wq[l].n = 0;
   tl->npend = tl->nwpend = 0;
+  tl->npts = tl->nwpts = 0;
+  tl->dirty = false;
   tl->ntets = tl->live_tets = 0;
   tl->held = false;
   return err;
@@ -778,6 +785,15 @@ i2m_err_t i2m_refine_unpack(i2m_refine_t *r, const void *buf, size_t len, uint32
   for (int l = 0; l < NLEVELS && err == I2M_OK; l++) err = unpack_queue(r, &tl->wq[l], &R, h.nwq[l], tslot, h.ntets);
   if (err == I2M_OK) err = unpack_pending(r, &tl->pend, &tl->npend, &tl->cap_pend, &R, h.npend);
   if (err == I2M_OK) err = unpack_pending(r, &tl->wpend, &tl->nwpend, &tl->cap_wpend, &R, h.nwpend);
+  const unsigned char *pts = take(&R, (size_t)h.npts * sizeof(i2m_bridge_point_t));
+  const unsigned char *wpts = take(&R, (size_t)h.nwpts * sizeof(i2m_bridge_point_t));
+  if (err == I2M_OK && !(pts && wpts)) err = I2M_ERROR(I2M_ERR_INTERNAL, "bad submesh (truncated points)");
+  for (uint32_t i = 0; i < h.npts + h.nwpts && err == I2M_OK; i++) { /* (copied out: the buffer is not aligned) */
+    i2m_bridge_point_t p;
+    memcpy(&p, i < h.npts ? pts + i * sizeof p : wpts + (i - h.npts) * sizeof p, sizeof p);
+    err = tiles_add_point(r, h.tile, &p, i >= h.npts);
+  }
+  tl->dirty = h.dirty != 0;
   i2m_free(&vslot);
   i2m_free(&tslot);
   I2M_CALL(err);
@@ -833,4 +849,11 @@ uint16_t dist_ghost_label(const i2m_refine_t *r, uint32_t t, int i)
   face_key(r->dt, t, i, key);
   const rface_t *f = rf_find(r->sub, key);
   return f ? f->ghost : 0;
+}
+
+void dist_face(const i2m_refine_t *r, uint32_t t, int i, i2m_gidx_t key[3], int32_t *cell)
+{
+  face_key(r->dt, t, i, key);
+  const rface_t *f = rf_find(r->sub, key);
+  *cell = f ? f->cell : -1;
 }

@@ -92,8 +92,8 @@ static size_t lists_work(const badlist_t *q, uint32_t npend)
   return n;
 }
 
-static size_t tile_work(const tile_t *tl) { return lists_work(tl->q, tl->npend); }
-static size_t tile_wide_work(const tile_t *tl) { return lists_work(tl->wq, tl->nwpend); }
+static size_t tile_work(const tile_t *tl) { return lists_work(tl->q, tl->npend) + tl->npts; }
+static size_t tile_wide_work(const tile_t *tl) { return lists_work(tl->wq, tl->nwpend) + tl->nwpts; }
 
 /* ---- queues ---- */
 
@@ -227,20 +227,100 @@ void tiles_unbind(i2m_refine_worker_t *w)
   w->tile_wide = false;
 }
 
-/* Worker k on tile id (its wide task when wide) until its lists are empty or its slots run out. */
+/* ---- bridge points (dist: the component rule's points, work of the task of their cell) ---- */
+
+i2m_err_t tiles_add_point(i2m_refine_t *r, uint32_t id, const i2m_bridge_point_t *p, bool wide)
+{
+  tile_t *tl = &r->tiling->tile[id];
+  i2m_bridge_point_t **a = wide ? &tl->wpts : &tl->pts;
+  uint32_t *n = wide ? &tl->nwpts : &tl->npts, *cap = wide ? &tl->cap_wpts : &tl->cap_pts;
+  if (*n == *cap) {
+    *cap = *cap ? 2 * *cap : 16;
+    I2M_CALL(i2m_realloc(*cap, sizeof **a, a));
+  }
+  (*a)[(*n)++] = *p;
+  return I2M_OK;
+}
+
+/* A live tet of the worker's tile to walk from (its list of tets), or I2M_DT_NONE. */
+static uint32_t tile_start(const i2m_refine_worker_t *w)
+{
+  const tile_t *tl = w->tile;
+  for (uint32_t i = 0; i < tl->ntets; i++)
+    if (i2m_dt_meta(w->r->dt, tl->tets[i].t) == tl->tets[i].meta) return tl->tets[i].t;
+  return I2M_DT_NONE;
+}
+
+/* The task inserts its tile's bridge points (its wide task, the wide ones); what its zone
+ * cannot hold goes to the wide task, or counts as stuck.  Every tile of the block then has
+ * elements in an order that depends on who inserted what: tiles_canonical puts them in one.
+ * Returns false when the tile's slots ran out (the points left stay for its next turn). */
+static i2m_err_t insert_tile_points(i2m_refine_worker_t *w, bool *full)
+{
+  i2m_refine_t *r = w->r;
+  tile_t *tl = w->tile;
+  const bool wide = w->tile_wide;
+  i2m_bridge_point_t *pts = wide ? tl->wpts : tl->pts;
+  uint32_t n = wide ? tl->nwpts : tl->npts, done = 0;
+  *full = false;
+  uint32_t start = tile_start(w);
+  for (; done < n; done++) {
+    const i2m_bridge_point_t *p = &pts[done];
+    uint32_t v;
+    i2m_dt_status_t st = start == I2M_DT_NONE ? I2M_DT_FROZEN : i2m_dt_insert_walk(&w->ctx, p->x, p->gid, I2M_VK_FREE, start, &v);
+    if (st == I2M_DT_FULL) {
+      i2m_dt_unlock_all(&w->ctx);
+      *full = true;
+      break;
+    }
+    if (st == I2M_DT_OK) {
+      w->st.insertions++;
+      w->st.bridges++;
+      i2m_err_t err = dist_tracking(r) ? dist_note_vertex(w, v) : I2M_OK;
+      if (err == I2M_OK) err = worker_keep_created(w);
+      if (err == I2M_OK) err = worker_process_created(w, w->created, w->ncreated);
+      i2m_dt_unlock_all(&w->ctx);
+      I2M_CALL(err);
+      start = w->created[0];
+      continue;
+    }
+    i2m_dt_unlock_all(&w->ctx);
+    if (st == I2M_DT_DUPLICATE) continue;
+    if (wide) r->tiling->stuck_points++; /* (the other tasks of the phase never touch the tiling's fields: this one runs alone) */
+    else I2M_CALL(tiles_add_point(r, w->tile_id, p, true));
+  }
+  memmove(pts, pts + done, (n - done) * sizeof *pts);
+  if (wide) tl->nwpts = n - done;
+  else tl->npts = n - done;
+  const i2m_dt_block_t *b = wide ? &tl->wblock : &tl->block;
+  for (int32_t k = b->lo[2]; k <= b->hi[2]; k++)
+    for (int32_t j = b->lo[1]; j <= b->hi[1]; j++)
+      for (int32_t i = b->lo[0]; i <= b->hi[0]; i++) r->tiling->tile[tile_index(r->tiling, (int32_t[3]){i, j, k})].dirty = true;
+  return I2M_OK;
+}
+
+/* Worker k on tile id (its wide task when wide) until its lists are empty or its slots run
+ * out; a task with bridge points inserts them and ends (its elements wait for the next). */
 static i2m_err_t run_tile(i2m_refine_t *r, int k, uint32_t id, bool wide)
 {
   i2m_refine_worker_t *w = &r->workers[k];
   double t0 = i2m_wtime();
+  tile_t *tl = &r->tiling->tile[id];
   tiles_bind(w, id, wide);
-  int s;
-  do {
-    s = worker_step(w);
-  } while (s == I2M_STEP_DONE);
-  bool full = w->tile_full;
+  int s = I2M_STEP_IDLE;
+  bool full = false;
+  if (wide ? tl->nwpts : tl->npts) {
+    i2m_err_t err = insert_tile_points(w, &full);
+    if (err != I2M_OK) s = I2M_STEP_ERROR;
+    w->tile_full |= full;
+  } else {
+    do {
+      s = worker_step(w);
+    } while (s == I2M_STEP_DONE);
+  }
+  full = w->tile_full;
   tiles_unbind(w);
   w->st.seconds += i2m_wtime() - t0;
-  tile_t *tl = &r->tiling->tile[id];
   if (full && tl->grant < (1u << 16)) tl->grant *= 2; /* the tile ran out of slots: more next time */
   I2M_CHECK(s == I2M_STEP_IDLE || (s == I2M_STEP_FULL && full), I2M_ERR_INTERNAL, "refinement failed in a tile: %s",
             i2m_error_message());
@@ -260,6 +340,8 @@ static void tile_free(tile_t *tl)
   }
   i2m_free(&tl->pend);
   i2m_free(&tl->wpend); /* (the slots went back with i2m_dt_slots_release) */
+  i2m_free(&tl->pts);
+  i2m_free(&tl->wpts);
 }
 
 static void tiling_free(tiling_t **gp)
@@ -507,6 +589,80 @@ static void compact_lists(const i2m_dt_t *dt, badlist_t *q)
   }
 }
 
+/* ---- an order of their own ---- */
+
+typedef struct {
+  i2m_gidx_t key[4];
+  uint32_t t, meta;
+} keyed_t;
+
+static int cmp_keyed(const void *x, const void *y) { return pieces_key_cmp(((const keyed_t *)x)->key, ((const keyed_t *)y)->key); }
+
+static int cmp_pend_gid(const void *x, const void *y)
+{
+  const i2m_gidx_t a = ((const pending_t *)x)->gid, b = ((const pending_t *)y)->gid;
+  return (a > b) - (a < b);
+}
+
+/* A narrow list sorted by tet key (scratch: room for its entries). */
+static void sort_list(const i2m_dt_t *dt, badlist_t *q, keyed_t *k)
+{
+  for (size_t i = 0; i < q->n; i++) {
+    k[i].t = q->e[i][0];
+    k[i].meta = q->e[i][1];
+    pieces_tet_key(dt, k[i].t, k[i].key);
+  }
+  if (q->n > 1) qsort(k, q->n, sizeof *k, cmp_keyed);
+  for (size_t i = 0; i < q->n; i++) {
+    q->e[i][0] = k[i].t;
+    q->e[i][1] = k[i].meta;
+  }
+}
+
+void tiles_canonical(i2m_refine_t *r, uint32_t id)
+{
+  tiling_t *g = r->tiling;
+  tile_t *tl = &g->tile[id];
+  const i2m_dt_t *dt = r->dt;
+  compact_lists(dt, tl->q);
+  compact_lists(dt, tl->wq);
+  size_t most = 0;
+  for (int l = 0; l < NLEVELS; l++) {
+    if (g->octree) { /* (as place() puts them) */
+      size_t n = 0;
+      for (size_t i = 0; i < tl->q[l].n; i++) {
+        const bad_t b = {tl->q[l].e[i][0], tl->q[l].e[i][1], {0, 0, 0, 0}};
+        if (zone_fits_tet(tl->zone, dt, b.t)) {
+          tl->q[l].e[n][0] = b.t;
+          tl->q[l].e[n][1] = b.meta;
+          n++;
+        } else if (badlist_push(&tl->wq[l], dt, &b) != I2M_OK) {
+          n++; /* (out of memory: it stays, only the order is lost) */
+        }
+      }
+      tl->q[l].n = n;
+    }
+    most = tl->q[l].n > most ? tl->q[l].n : most;
+    most = tl->wq[l].n > most ? tl->wq[l].n : most;
+  }
+  keyed_t *k = NULL;
+  if (most && i2m_malloc(most, sizeof *k, &k) == I2M_OK) {
+    for (int l = 0; l < NLEVELS; l++) {
+      sort_list(dt, &tl->q[l], k);
+      sort_list(dt, &tl->wq[l], k);
+    }
+    i2m_free(&k);
+  }
+  if (tl->npend > 1) qsort(tl->pend, tl->npend, sizeof *tl->pend, cmp_pend_gid);
+  if (tl->nwpend > 1) qsort(tl->wpend, tl->nwpend, sizeof *tl->wpend, cmp_pend_gid);
+  tl->dirty = false;
+}
+
+void tiles_canonical_all(i2m_refine_t *r)
+{
+  for (uint32_t id = 0; id < r->tiling->ntiles; id++) tiles_canonical(r, id);
+}
+
 /* Slots for a tile's work, from its live elements (it stops when they run out). */
 static i2m_err_t grant_tile(i2m_refine_t *r, tile_t *tl, size_t work)
 {
@@ -631,6 +787,7 @@ i2m_err_t i2m_refine_tiles_prepare(i2m_refine_t *r, const uint32_t *tiles, uint3
   g->nactive = 0;
   for (uint32_t i = 0; i < n; i++) {
     tile_t *tl = &g->tile[tiles[i]];
+    if (tl->dirty) tiles_canonical(r, tiles[i]);
     compact_lists(r->dt, tl->q);
     I2M_CALL(grant_tile(r, tl, tile_work(tl)));
     g->active[g->nactive++] = tiles[i];
@@ -642,6 +799,7 @@ i2m_err_t i2m_refine_tiles_prepare(i2m_refine_t *r, const uint32_t *tiles, uint3
 void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t *work, int64_t *wide, int64_t *tets)
 {
   tile_t *tl = &r->tiling->tile[id];
+  if (tl->dirty) tiles_canonical(r, id);
   compact_lists(r->dt, tl->q);
   compact_lists(r->dt, tl->wq);
   *work = (int64_t)tile_work(tl);
@@ -675,6 +833,7 @@ i2m_err_t i2m_refine_tiling_wide_tiles(i2m_refine_t *r, const uint32_t **tiles, 
 i2m_err_t i2m_refine_tile_run_wide(i2m_refine_t *r, int k, uint32_t id)
 {
   tile_t *tl = &r->tiling->tile[id];
+  if (tl->dirty) tiles_canonical(r, id);
   I2M_CALL(grant_tile(r, tl, tile_wide_work(tl)));
   I2M_CALL(vgrid_reserve(&r->surf, r->dt->cap_v));
   I2M_CALL(vgrid_reserve(&r->freev, r->dt->cap_v));
@@ -730,6 +889,9 @@ i2m_err_t i2m_refine_tiling_check_stuck(i2m_refine_t *r)
                 tl->wzone[1], tl->wzone[2], tl->wzone[3], tl->wzone[4], tl->wzone[5], geo.probe.d2);
     } else if (h->level < 0) i2m_debug("stuck: removal of vertex %u", h->pv.v);
   }
+  I2M_CHECK(!g || g->stuck_points == 0, I2M_ERR_INTERNAL,
+            "%lld points of the component rule could not be inserted inside any subregion's zone (not even a wide one): "
+            "a tissue would come out in pieces; try a smaller --depth", (long long)g->stuck_points);
   I2M_CHECK(n == 0, I2M_ERR_INTERNAL,
             "%lld bad elements could not be treated inside any subregion's zone (not even a wide one): the mesh "
             "would break a guarantee; try a smaller --depth",

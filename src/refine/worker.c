@@ -103,7 +103,7 @@ i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, u
   return I2M_OK;
 }
 
-static i2m_err_t keep_created(i2m_refine_worker_t *w)
+i2m_err_t worker_keep_created(i2m_refine_worker_t *w)
 {
   uint32_t n = w->ctx.nnew;
   if (n + 1 > w->cap_created) {
@@ -187,7 +187,7 @@ static int do_removal(i2m_refine_worker_t *w, pending_t pv)
   vgrid_remove(&w->r->freev, dt, pv.v); /* the slot is ours until our next insertion */
   w->st.removals++;
   w->st.rule[7]++;
-  i2m_err_t err = keep_created(w);
+  i2m_err_t err = worker_keep_created(w);
   if (err == I2M_OK) err = worker_process_created(w, w->created, w->ncreated);
   i2m_dt_unlock_all(&w->ctx);
   return err == I2M_OK ? I2M_STEP_DONE : I2M_STEP_ERROR;
@@ -247,7 +247,7 @@ static i2m_err_t after_insertion(i2m_refine_worker_t *w, const action_t *a, cons
   if (a->kind == I2M_VK_SURFACE) I2M_CALL(vgrid_insert(&r->surf, dt, v, a->patch));
   if (a->kind == I2M_VK_FREE && a->dist2 <= r->four_delta2) I2M_CALL(vgrid_insert(&r->freev, dt, v, VGRID_MEMBER));
   if (dist_tracking(r)) I2M_CALL(dist_note_vertex(w, v));
-  I2M_CALL(keep_created(w));
+  I2M_CALL(worker_keep_created(w));
   I2M_CALL(worker_process_created(w, w->created, w->ncreated));
   /* the point may have gone in elsewhere (a neighbour's ball, a walk): a tet that survives
    * keeps whatever else is wrong with it, so it goes back to the lists */

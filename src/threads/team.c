@@ -383,8 +383,8 @@ static i2m_err_t tiled_rounds(team_t *tm, const tiled_work_t *wk, int64_t *phase
   return err;
 }
 
-/* Refinement's rounds on the tiles, then the tiling's figures. */
-static i2m_err_t run_tiled(team_t *tm, i2m_threads_report_t *rep)
+/* Refinement's rounds on the tiles, then the tiling's figures; the tiling ends unless keep. */
+static i2m_err_t run_tiled(team_t *tm, i2m_threads_report_t *rep, bool keep)
 {
   i2m_refine_t *r = tm->r;
   i2m_err_t err = tiled_rounds(tm, &REFINE_TILES, &rep->phases);
@@ -401,7 +401,7 @@ static i2m_err_t run_tiled(team_t *tm, i2m_threads_report_t *rep)
     i2m_debug("tiled phase: side %.3g mm, %lld rounds, %lld sequential ops; so far %lld deferred, %lld insertions", side,
               (long long)rounds, (long long)seq, (long long)st.deferred, (long long)st.insertions);
   }
-  i2m_refine_tiling_end(r);
+  if (!keep) i2m_refine_tiling_end(r);
   return err;
 }
 
@@ -430,7 +430,7 @@ static i2m_err_t refine_deterministic(team_t *tm, const i2m_threads_opts_t *o, i
   if (coarse) {
     i2m_refine_set_scale(r, o->coarse_factor);
     err = i2m_refine_tiling_begin(r);
-    if (err == I2M_OK) err = run_tiled(tm, rep);
+    if (err == I2M_OK) err = run_tiled(tm, rep, false);
     i2m_refine_set_scale(r, 1.0);
   }
   double t1 = i2m_wtime();
@@ -444,12 +444,14 @@ static i2m_err_t refine_deterministic(team_t *tm, const i2m_threads_opts_t *o, i
     if (err == I2M_OK) err = run_job(tm, &jb);
     if (err == I2M_OK) err = i2m_refine_tiling_collect(r);
   }
-  if (err == I2M_OK) err = run_tiled(tm, rep);
-  for (int round = 0; err == I2M_OK && round < I2M_BRIDGE_ROUNDS; round++) { /* the component rule */
+  /* the component rule; the octree stays (its tiles' global ids go on), its bridge points
+   * enter its tiles as the dist layer's tasks insert them (i2m_refine_insert_bridges) */
+  if (err == I2M_OK) err = run_tiled(tm, rep, octree);
+  for (int round = 0; err == I2M_OK && round < I2M_BRIDGE_ROUNDS; round++) {
     bool more = false;
     err = bridge_round(r, &more);
-    if (err == I2M_OK && more) err = octree ? i2m_refine_octree_begin(r) : i2m_refine_tiling_begin(r);
-    if (err == I2M_OK && more) err = run_tiled(tm, rep);
+    if (err == I2M_OK && more && !octree) err = i2m_refine_tiling_begin(r);
+    if (err == I2M_OK && more) err = run_tiled(tm, rep, octree);
     if (!more) break;
   }
   i2m_refine_tiling_end(r); /* (after a failure too) */
@@ -545,7 +547,7 @@ i2m_err_t i2m_threads_coarse(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_t
   i2m_refine_set_scale(r, o->coarse_factor);
   if (o->deterministic) {
     err = i2m_refine_tiling_begin(r);
-    if (err == I2M_OK) err = run_tiled(&tm, rep);
+    if (err == I2M_OK) err = run_tiled(&tm, rep, false);
   } else {
     err = warm_up(r, T);
     if (err == I2M_OK) err = run_phase(&tm, false);

@@ -21,6 +21,7 @@
 #endif
 
 #include "i2m/quality.h"
+#include "i2m/refine.h"
 #include "i2m/tetmesh.h"
 #include "i2m/threads.h"
 
@@ -102,9 +103,23 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
 void i2m_dist_report_free(i2m_dist_report_t *rep);
 
 /** The labels across the faces between ranks (each rank tells the holder of the cell across
- *  each of its faces of another rank's the label of its tet there); holder[cell]: the rank
- *  that holds each cell.  Collective. */
-i2m_err_t i2m_dist_exchange_ghosts(const i2m_par_t *par, i2m_refine_t *r, const int32_t *holder);
+ *  each of its faces of another rank's the label of its tet there; the holders from the
+ *  Location array kept in r).  Again after labels change.  Collective. */
+i2m_err_t i2m_dist_exchange_ghosts(const i2m_par_t *par, i2m_refine_t *r);
+
+/** The pieces of the whole mesh (src/dist/pieces.c): each rank's parts, joined across the
+ *  faces between ranks, resolved on rank 0 (fragments, splits of components of at least
+ *  @p min_voxels) and set in every rank's r (i2m_refine_groups then answers).  Collective. */
+i2m_err_t i2m_dist_pieces(const i2m_par_t *par, i2m_refine_t *r, int64_t min_voxels);
+
+/** The component rule's points for the pieces set by i2m_dist_pieces: every rank's claims on
+ *  rank 0, the points from there to every rank, each filed by the rank that holds its cell;
+ *  *filed_total: how many (0: no component is split).  Collective. */
+i2m_err_t i2m_dist_bridge_points(const i2m_par_t *par, i2m_refine_t *r, int round, int64_t *filed_total);
+
+/** The refinement counters of the whole run: sums over the ranks (the figures that are the
+ *  whole mesh's already, fragments and rounds, stay).  Collective. */
+void i2m_dist_sum_stats(const i2m_par_t *par, i2m_refine_stats_t *s);
 
 /** The pieces (each rank's mesh, with global vertex ids) stitched on rank 0, one rank's after
  *  another, vertices merged by global id (the same place, or an error): on rank 0 *m becomes

@@ -236,11 +236,17 @@ void i2m_refine_dist_resolve(i2m_refine_t *r, uint32_t id);
 /** Before a job of tiles (run by i2m_refine_tile_run, then i2m_refine_tiling_merge): their
  *  lists without stale entries, their slots granted, the grids' room made. */
 i2m_err_t i2m_refine_tiles_prepare(i2m_refine_t *r, const uint32_t *tiles, uint32_t n);
-/** Tile id's live bad elements (for its task, for its wide task; its lists cleared of stale
- *  entries) and about how many tets it holds (its list's entries, some stale). */
-void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t *work, int64_t *wide, int64_t *tets);
+/** Tile id's figures: fig[0] its live bad elements and bridge points (its task's work), fig[1]
+ *  its wide task's, fig[2] about how many tets it holds (its list's entries, some stale),
+ *  fig[3] its bridge points (its lists are cleared of stale entries). */
+void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t fig[4]);
 /** The tiling's cells along each axis. */
 void i2m_refine_tiling_cells(const i2m_refine_t *r, int32_t n[3]);
+
+/** The Location array (the rank that holds each tile; [ntiles]), kept for the collective steps
+ *  after the tasks (pieces, labels across faces); NULL before it is set. */
+i2m_err_t i2m_refine_dist_set_location(i2m_refine_t *r, const int32_t *holder);
+const int32_t *i2m_refine_dist_location(const i2m_refine_t *r);
 
 /** A face of another rank's: its sorted global ids, the cell across it, a label index (the
  *  local tet's, when sent; the one across, when received). */
@@ -380,6 +386,9 @@ void i2m_pieces_global_free(i2m_pieces_global_t *G);
 /** The dist layer's result for this rank (G->part_group: this rank's parts), moved into r
  *  (G is emptied). */
 i2m_err_t i2m_refine_set_groups(i2m_refine_t *r, i2m_pieces_global_t *G);
+/** Dist: the part of the local kept tet of label @p label on the face with these sorted global
+ *  ids whose other side is another rank's, or -1 (no such face here, or another label). */
+int64_t i2m_refine_part_at_face(i2m_refine_t *r, const i2m_gidx_t key[3], uint16_t label);
 /** The pieces of the whole mesh: set by the dist layer, or resolved from this process's parts
  *  (borrowed, as i2m_refine_parts). */
 i2m_err_t i2m_refine_groups(i2m_refine_t *r, int64_t min_voxels, const i2m_pieces_global_t **out);
@@ -426,7 +435,8 @@ i2m_err_t i2m_bridge_points(const i2m_refine_t *r, const i2m_pieces_global_t *G,
  *  in the tiles if a tiling is in place, then put in an order of their own). */
 i2m_err_t i2m_refine_insert_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p, size_t n, int64_t *inserted);
 /** Dist layer: the points whose cell this rank holds become work of that cell's task (which
- *  inserts them first).  Returns through *filed how many. */
+ *  inserts them first).  Returns through *filed how many.  Every rank calls it with every
+ *  point (a round of the rule is counted). */
 i2m_err_t i2m_refine_file_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p, size_t n, int64_t *filed);
 
 /** The component rule on one process, after refinement has run dry: the splits, their bridge

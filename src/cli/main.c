@@ -104,7 +104,18 @@ static i2m_err_t run_mesher(run_t *r)
   phase_end(r, o->sliver_angle > 0 ? I2M_PHASE_SLIVERS : I2M_PHASE_REFINE);
 
   phase_begin(r, "extraction");
-  if (!r->distributed || getenv("I2M_FRAG")) AGREE(r, i2m_refine_repair_fragments(r->ref)); /* (asks the transform about the image) */
+  /* the fragments' repair and the census ask the transform about the image; under MPI the
+   * pieces of the whole mesh come from every rank's parts (and again once labels changed) */
+  if (r->distributed) I2M_CALL(i2m_dist_pieces(r->par, r->ref, I2M_WHOLE_MIN_VOXELS));
+  AGREE(r, i2m_refine_repair_fragments(r->ref));
+  if (r->distributed) {
+    i2m_refine_stats_t st;
+    i2m_refine_get_stats(r->ref, &st);
+    if (st.fragments) { /* (the same figure on every rank) */
+      I2M_CALL(i2m_dist_exchange_ghosts(r->par, r->ref));
+      I2M_CALL(i2m_dist_pieces(r->par, r->ref, I2M_WHOLE_MIN_VOXELS));
+    }
+  }
   AGREE(r, i2m_refine_census(r->ref, I2M_WHOLE_MIN_VOXELS, &r->pieces));
   if (r->par->rank == 0) warn_split_components(r);
   i2m_edt_destroy(&r->edt);
@@ -148,6 +159,7 @@ static i2m_err_t report(run_t *r)
   rep->img = r->img;
   rep->params = p;
   i2m_refine_get_stats(r->ref, &rep->stats);
+  if (r->distributed) i2m_dist_sum_stats(r->par, &rep->stats);
   int64_t counts[3] = {r->mesh->nv, r->mesh->nt, r->mesh->ntri};
   if (!whole) i2m_par_sum_i64(r->par, counts, 3); /* (vertices shared by pieces counted in each) */
   rep->nv = counts[0];

@@ -92,6 +92,7 @@ typedef struct {
   sched_t S;
   int stopped;                 /* ranks told to stop */
   int det_stage, det_color, det_pending;
+  bool det_points;             /* this round's tasks insert bridge points only (as one process inserts them at once) */
   uint32_t *wide_list, nwide, wide_next;
   int64_t rounds;
 } engine_t;
@@ -337,7 +338,7 @@ static void finish_batch(engine_t *E)
   uint32_t *cells = NULL;
   const uint32_t nc = batch_cells(E, &cells);
   int64_t *m = NULL;
-  check(E, i2m_malloc(2 + 2 * (size_t)E->nbatch + 4 * (size_t)nc, sizeof *m, &m));
+  check(E, i2m_malloc(2 + 2 * (size_t)E->nbatch + 5 * (size_t)nc, sizeof *m, &m));
   size_t at = 0;
   m[at++] = E->nbatch;
   for (uint32_t k = 0; k < E->nbatch; k++) {
@@ -346,12 +347,9 @@ static void finish_batch(engine_t *E)
   }
   m[at++] = nc;
   for (uint32_t i = 0; i < nc; i++) {
-    int64_t work, wide, tets;
-    i2m_refine_tile_figures(E->r, cells[i], &work, &wide, &tets);
     m[at++] = cells[i];
-    m[at++] = work;
-    m[at++] = wide;
-    m[at++] = tets;
+    i2m_refine_tile_figures(E->r, cells[i], m + at);
+    at += 4;
   }
   post(E, 0, TAG_FEEDBACK, m, at * sizeof *m, MPI_INT64_T);
   i2m_free(&cells);
@@ -484,7 +482,7 @@ static void det_next(engine_t *E)
         int32_t *saved = NULL;
         check(E, i2m_malloc(S->ncells, sizeof *saved, &saved));
         memcpy(saved, S->holder, S->ncells * sizeof *saved);
-        n = sched_phase(S, E->det_color++, tasks, owner);
+        n = sched_phase(S, E->det_color++, E->det_points, tasks, owner);
         if (n == UINT32_MAX) fail(E, "out of memory scheduling a phase");
         for (int q = 0; q < P && n; q++) { /* each rank's tasks, with the Location before */
           sched_task_t mine[4096];
@@ -500,6 +498,11 @@ static void det_next(engine_t *E)
         i2m_free(&saved);
       }
       if (n) break;
+      if (E->det_points) { /* a round that inserted bridge points only: then rounds of refinement */
+        E->det_color = 0;
+        E->det_points = sched_has_points(S); /* (points left where slots ran out) */
+        continue;
+      }
       E->det_stage = 1; /* the wide pass: its list, then its tasks one at a time */
       check(E, i2m_realloc(S->ncells + 1, sizeof *E->wide_list, &E->wide_list));
       E->nwide = sched_wide_list(S, E->wide_list);
@@ -523,6 +526,7 @@ static void det_next(engine_t *E)
     }
     E->det_stage = 0;
     E->det_color = 0;
+    E->det_points = sched_has_points(S);
   }
   E->det_pending = n ? P : 0;
   i2m_free(&tasks);
@@ -541,7 +545,7 @@ static void on_feedback(engine_t *E, int q, const int64_t *m, int n)
   const uint32_t nc = (uint32_t)m[at++];
   sched_cell_t *cells = NULL;
   check(E, i2m_malloc(nc + 1, sizeof *cells, &cells));
-  for (uint32_t i = 0; i < nc; i++, at += 4) cells[i] = (sched_cell_t){(uint32_t)m[at], m[at + 1], m[at + 2], m[at + 3]};
+  for (uint32_t i = 0; i < nc; i++, at += 5) cells[i] = (sched_cell_t){(uint32_t)m[at], m[at + 1], m[at + 2], m[at + 3], m[at + 4]};
   sched_feedback(&E->S, q, tasks, nt, cells, nc);
   i2m_free(&cells);
   if (!E->det) {
@@ -650,10 +654,58 @@ static i2m_err_t engine_init(engine_t *E, const i2m_par_t *par, i2m_refine_t *r,
   I2M_CALL(i2m_malloc(4096, sizeof *E->created, &E->created));
   int32_t n[3];
   i2m_refine_tiling_cells(r, n);
-  I2M_CALL(sched_init(&E->S, n, par->size)); /* (its block geometry serves every rank) */
-  if (par->rank == 0)
-    for (uint32_t c = 0; c < E->S.ncells; c++) i2m_refine_tile_figures(r, c, &E->S.work[c], &E->S.wide[c], &E->S.tets[c]);
+  return sched_init(&E->S, n, par->size); /* (its block geometry serves every rank) */
+}
+
+/* Before a run of tasks: the scheduler learns every cell's figures from the rank that holds
+ * it, and the Location array (collective). */
+static i2m_err_t engine_seed(engine_t *E)
+{
+  sched_t *S = &E->S;
+  const uint32_t nc = S->ncells;
+  int64_t *fig = NULL;
+  I2M_CALL(i2m_calloc(4 * (size_t)nc, sizeof *fig, &fig));
+  for (uint32_t c = 0; c < nc; c++)
+    if (i2m_refine_holds(E->r, c)) i2m_refine_tile_figures(E->r, c, fig + 4 * c);
+  MPI_Allreduce(MPI_IN_PLACE, fig, 4 * (int)nc, MPI_INT64_T, MPI_SUM, E->par->comm);
+  for (uint32_t c = 0; c < nc; c++) {
+    S->work[c] = fig[4 * c];
+    S->wide[c] = fig[4 * c + 1];
+    S->tets[c] = fig[4 * c + 2];
+    S->points[c] = fig[4 * c + 3];
+    S->lock[c] = 0;
+  }
+  i2m_free(&fig);
+  const int32_t *loc = i2m_refine_dist_location(E->r);
+  if (loc) memcpy(S->holder, loc, nc * sizeof *loc);
+  for (int q = 0; q < S->nranks; q++) {
+    S->inflight[q] = 0;
+    S->waiting[q] = S->done[q] = false;
+  }
+  E->ws = W_IDLE;
+  E->stopped = 0;
+  E->det_stage = E->det_color = E->det_pending = 0;
+  E->det_points = sched_has_points(S);
+  E->nbatch = 0;
   return I2M_OK;
+}
+
+/* A run of tasks until no cell has work, on T worker threads beside this (MPI) thread; then
+ * the Location array and the labels across the faces between ranks on every rank. */
+static i2m_err_t engine_run(engine_t *E, const i2m_threads_opts_t *to, i2m_threads_report_t *team)
+{
+  const i2m_par_t *par = E->par;
+  I2M_CALL(i2m_par_agree(par, engine_seed(E)));
+  const int pin_offset = par->local_size > 1 ? par->local_rank * to->threads : 0;
+  i2m_err_t err = i2m_threads_serve(E->r, to, pin_offset, engine_master, E, team);
+  if (err != I2M_OK) { /* (a failure in the loop aborts the run itself: this is the pool's) */
+    fprintf(stderr, "i2m: %s%s\n", par->prefix, i2m_error_message());
+    i2m_par_abort(par, 1);
+  }
+  MPI_Bcast(E->S.holder, (int)E->S.ncells, MPI_INT32_T, 0, par->comm); /* (the Location array, final) */
+  I2M_CALL(i2m_par_agree(par, i2m_refine_dist_set_location(E->r, E->S.holder)));
+  I2M_CALL(i2m_dist_exchange_ghosts(par, E->r));
+  return i2m_par_agree(par, i2m_refine_tiling_check_stuck(E->r)); /* (it reads the labels across) */
 }
 
 static void engine_free(engine_t *E)
@@ -677,8 +729,16 @@ static i2m_err_t scatter_coarse(engine_t *E)
 {
   const i2m_par_t *par = E->par;
   sched_t *S = &E->S;
-  if (par->rank == 0) sched_partition(S);
+  if (par->rank == 0) {
+    for (uint32_t c = 0; c < S->ncells; c++) {
+      int64_t fig[4];
+      i2m_refine_tile_figures(E->r, c, fig);
+      S->tets[c] = fig[2];
+    }
+    sched_partition(S);
+  }
   MPI_Bcast(S->home, (int)S->ncells, MPI_INT32_T, 0, par->comm);
+  memcpy(S->holder, S->home, S->ncells * sizeof *S->holder); /* (where the cells are once sent) */
   i2m_err_t err = I2M_OK;
   if (par->rank == 0) {
     for (int q = 1; q < par->size; q++) {
@@ -695,7 +755,6 @@ static i2m_err_t scatter_coarse(engine_t *E)
         free(buf);
         E->fig.tiles_out++;
         E->fig.bytes_out += (int64_t)len;
-        S->holder[c] = q;
       }
     }
     for (uint32_t c = 0; c < S->ncells && err == I2M_OK; c++)
@@ -773,6 +832,21 @@ static i2m_err_t write_trace(const i2m_par_t *par, const engine_t *E, const char
   return err;
 }
 
+/* The component rule across the ranks: the pieces, the bridge points filed in the cells that
+ * hold them, tasks again, until no large component is split (or a few rounds). */
+static i2m_err_t component_rule(engine_t *E, const i2m_threads_opts_t *to, i2m_threads_report_t *team)
+{
+  for (int round = 0; round < I2M_BRIDGE_ROUNDS; round++) {
+    int64_t filed = 0;
+    I2M_CALL(i2m_dist_pieces(E->par, E->r, I2M_WHOLE_MIN_VOXELS));
+    I2M_CALL(i2m_dist_bridge_points(E->par, E->r, round, &filed));
+    if (!filed) break;
+    i2m_debug("component rule: %lld bridge points", (long long)filed);
+    I2M_CALL(engine_run(E, to, team));
+  }
+  return I2M_OK;
+}
+
 i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_opts_t *o, i2m_threads_report_t *team,
                           i2m_dist_report_t *rep)
 {
@@ -799,15 +873,12 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
   I2M_CALL(i2m_par_agree(par, i2m_refine_dist_begin(r, par->rank == 0)));
   engine_t E;
   I2M_CALL(i2m_par_agree(par, engine_init(&E, par, r, o, T)));
-  I2M_CALL(i2m_par_agree(par, scatter_coarse(&E)));
+  err = i2m_par_agree(par, scatter_coarse(&E));
   E.t0 = i2m_wtime();
   E.fig.preprocess = E.t0 - t0;
-  const int pin_offset = par->local_size > 1 ? par->local_rank * T : 0;
-  err = i2m_threads_serve(r, &to, pin_offset, engine_master, &E, team);
-  if (err != I2M_OK) { /* (a failure in the loop aborts the run itself: this is the pool's) */
-    fprintf(stderr, "i2m: %s%s\n", par->prefix, i2m_error_message());
-    i2m_par_abort(par, 1);
-  }
+  if (err == I2M_OK) err = i2m_par_agree(par, i2m_refine_dist_set_location(r, E.S.holder));
+  if (err == I2M_OK) err = engine_run(&E, &to, team);
+  if (err == I2M_OK) err = component_rule(&E, &to, team);
   rep->fine_seconds = i2m_par_max(par, i2m_wtime() - E.t0);
   i2m_refine_stats_t st;
   i2m_refine_get_stats(r, &st);
@@ -817,11 +888,7 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
   i2m_dt_checksum(i2m_refine_dt(r), &tets);
   E.fig.tets = tets;
   E.fig.peak_rss = (double)i2m_peak_rss_bytes();
-  err = gather_figures(par, &E.fig, rep);
-  if (err == I2M_OK) err = i2m_refine_tiling_check_stuck(r);
-  err = i2m_par_agree(par, err);
-  MPI_Bcast(E.S.holder, (int)E.S.ncells, MPI_INT32_T, 0, par->comm); /* (the Location array, final) */
-  if (err == I2M_OK) err = i2m_par_agree(par, i2m_dist_exchange_ghosts(par, r, E.S.holder));
+  if (err == I2M_OK) err = i2m_par_agree(par, gather_figures(par, &E.fig, rep));
   if (err == I2M_OK && o->trace) err = i2m_par_agree(par, write_trace(par, &E, o->trace));
   engine_free(&E);
   return err;

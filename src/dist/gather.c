@@ -180,8 +180,9 @@ i2m_err_t i2m_dist_gather_mesh(const i2m_par_t *par, i2m_tetmesh_t **m)
 
 /* ---- the labels across the faces between ranks ---- */
 
-i2m_err_t i2m_dist_exchange_ghosts(const i2m_par_t *par, i2m_refine_t *r, const int32_t *holder)
+i2m_err_t i2m_dist_exchange_ghosts(const i2m_par_t *par, i2m_refine_t *r)
 {
+  const int32_t *holder = i2m_refine_dist_location(r);
   const size_t n = i2m_refine_dist_nfaces(r);
   i2m_face_label_t *faces = NULL, *sorted = NULL, *recv = NULL;
   int *scount = NULL, *rcount = NULL, *sdisp = NULL, *rdisp = NULL;
@@ -236,11 +237,10 @@ i2m_err_t i2m_dist_gather_mesh(const i2m_par_t *par, i2m_tetmesh_t **m)
   return I2M_OK;
 }
 
-i2m_err_t i2m_dist_exchange_ghosts(const i2m_par_t *par, i2m_refine_t *r, const int32_t *holder)
+i2m_err_t i2m_dist_exchange_ghosts(const i2m_par_t *par, i2m_refine_t *r)
 {
   (void)par;
   (void)r;
-  (void)holder;
   return I2M_OK;
 }
 
@@ -272,3 +272,18 @@ void i2m_dist_reduce_quality(const i2m_par_t *par, i2m_quality_t *q)
   (void)q;
 }
 #endif
+
+/* ---- the refinement counters of the whole run ---- */
+
+void i2m_dist_sum_stats(const i2m_par_t *par, i2m_refine_stats_t *s)
+{
+  int64_t *sum[] = {&s->rule[0], &s->rule[1], &s->rule[2], &s->rule[3], &s->rule[4], &s->rule[5], &s->rule[6],
+                    &s->rule[7], &s->insertions, &s->removals, &s->rollbacks, &s->failed, &s->duplicates,
+                    &s->junction_skips, &s->tets_created, &s->deferred, &s->bridges};
+  enum { N = sizeof sum / sizeof *sum };
+  int64_t x[N];
+  for (int i = 0; i < N; i++) x[i] = *sum[i];
+  i2m_par_sum_i64(par, x, N);
+  for (int i = 0; i < N; i++) *sum[i] = x[i];
+  s->seconds = i2m_par_max(par, s->seconds);
+}

@@ -15,6 +15,7 @@ i2m_err_t sched_init(sched_t *S, const int32_t n[3], int nranks)
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->work, &S->work);
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->wide, &S->wide);
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->tets, &S->tets);
+  if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->points, &S->points);
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->holder, &S->holder); /* rank 0 holds the coarse mesh */
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->home, &S->home);
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->lock, &S->lock);
@@ -30,6 +31,7 @@ void sched_free(sched_t *S)
   i2m_free(&S->work);
   i2m_free(&S->wide);
   i2m_free(&S->tets);
+  i2m_free(&S->points);
   i2m_free(&S->holder);
   i2m_free(&S->home);
   i2m_free(&S->lock);
@@ -183,7 +185,15 @@ void sched_feedback(sched_t *S, int rank, const sched_task_t *tasks, uint32_t nt
     S->work[c->cell] = c->work;
     S->wide[c->cell] = c->wide;
     S->tets[c->cell] = c->tets;
+    S->points[c->cell] = c->points;
   }
+}
+
+bool sched_has_points(const sched_t *S)
+{
+  for (uint32_t c = 0; c < S->ncells; c++)
+    if (S->points[c]) return true;
+  return false;
 }
 
 bool sched_busy(const sched_t *S)
@@ -225,31 +235,26 @@ static int cmp_by_work(const void *a, const void *b)
   return (x->cell > y->cell) - (x->cell < y->cell);
 }
 
-uint32_t sched_phase(sched_t *S, int color, sched_task_t *out, int *owner)
+uint32_t sched_phase(sched_t *S, int color, bool points_only, sched_task_t *out, int *owner)
 {
   by_work_t *list = NULL;
-  int64_t *load = NULL;
-  if (i2m_malloc(S->ncells, sizeof *list, &list) != I2M_OK || i2m_calloc((size_t)S->nranks, sizeof *load, &load) != I2M_OK) {
-    i2m_free(&list);
-    return UINT32_MAX;
-  }
+  if (i2m_malloc(S->ncells, sizeof *list, &list) != I2M_OK) return UINT32_MAX;
   uint32_t n = 0;
   for (uint32_t c = 0; c < S->ncells; c++) {
     int32_t x[3];
     coords(S, c, x);
-    if (x[0] % 3 + 3 * (x[1] % 3) + 9 * (x[2] % 3) == color && S->work[c] > 0) list[n++] = (by_work_t){S->work[c], c};
+    const int64_t w = points_only ? S->points[c] : S->work[c];
+    if (x[0] % 3 + 3 * (x[1] % 3) + 9 * (x[2] % 3) == color && w > 0) list[n++] = (by_work_t){w, c};
   }
   qsort(list, n, sizeof *list, cmp_by_work);
   for (uint32_t k = 0; k < n; k++) { /* each to the rank that holds most of its block: data stays put */
     const sched_task_t t = {list[k].cell, false};
     const int r = sched_best_rank(S, t);
-    load[r] += list[k].work;
     out[k] = t;
     owner[k] = r;
     sched_give(S, r, t);
   }
   i2m_free(&list);
-  i2m_free(&load);
   return n;
 }
 

@@ -29,6 +29,7 @@ typedef struct {
 typedef struct {
   uint32_t cell;
   int64_t work, wide, tets; /* bad elements, of them for the wide task, tets held */
+  int64_t points;           /* bridge points its task inserts first (counted in work) */
 } sched_cell_t;
 
 typedef struct {
@@ -38,6 +39,7 @@ typedef struct {
   int64_t *work;     /* [ncells] bad elements for the cell's task */
   int64_t *wide;     /* [ncells] bad elements for its wide task */
   int64_t *tets;     /* [ncells] tets of its submesh */
+  int64_t *points;   /* [ncells] bridge points for its task (the deterministic mode's first stage) */
   int32_t *holder;   /* [ncells] the rank that holds its submesh (Location) */
   int32_t *home;     /* [ncells] the rank whose share of the block the cell is in (sched_partition) */
   uint32_t *lock;    /* [ncells] tasks in flight whose block holds it */
@@ -76,10 +78,13 @@ void sched_feedback(sched_t *S, int rank, const sched_task_t *tasks, uint32_t nt
 bool sched_busy(const sched_t *S);
 
 /** The deterministic mode's phase: the tasks of one colour (the cells whose coordinates
- *  modulo 3 make it) that have work, each assigned (owner[k]) to the rank that holds most of
+ *  modulo 3 make it) that have work (points_only: bridge points), each assigned (owner[k]) to the rank that holds most of
  *  its block (the data stays put; the shares of sched_partition balance the work); their
  *  blocks locked and given to their ranks.  Returns their number. */
-uint32_t sched_phase(sched_t *S, int color, sched_task_t *out, int *owner);
+uint32_t sched_phase(sched_t *S, int color, bool points_only, sched_task_t *out, int *owner);
+
+/** Has some cell bridge points still to insert? */
+bool sched_has_points(const sched_t *S);
 
 /** The deterministic mode's wide pass: the cells with wide work, in order. */
 uint32_t sched_wide_list(const sched_t *S, uint32_t *out);

@@ -416,3 +416,17 @@ i2m_err_t i2m_refine_bridge_splits(i2m_refine_t *r, int64_t min_voxels, int64_t 
   i2m_free(&p);
   return err;
 }
+
+i2m_err_t i2m_refine_file_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p, size_t n, int64_t *filed)
+{
+  *filed = 0;
+  for (size_t i = 0; i < n; i++) {
+    const uint32_t id = tiles_tile_of_point(r, p[i].x);
+    if (!i2m_refine_holds(r, id)) continue;
+    I2M_CALL(tiles_add_point(r, id, &p[i], false));
+    (*filed)++;
+  }
+  if (*filed) pieces_invalidate(r); /* (the mesh will change) */
+  r->bridge_rounds += n > 0;
+  return I2M_OK;
+}

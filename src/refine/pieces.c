@@ -361,6 +361,15 @@ i2m_err_t i2m_refine_parts(i2m_refine_t *r, i2m_parts_t *out)
   return I2M_OK;
 }
 
+int64_t i2m_refine_part_at_face(i2m_refine_t *r, const i2m_gidx_t key[3], uint16_t label)
+{
+  const uint32_t f = dist_face_at(r, key);
+  if (f == I2M_DT_NONE) return -1;
+  const uint32_t t = f >> 2;
+  if (!tet_kept(r->dt, t) || tinfo(r->dt, t)->label != label) return -1;
+  return pieces_index(&r->pieces, t);
+}
+
 /* ---- the pieces of the whole mesh, from every rank's parts ---- */
 
 static int64_t gfind(int64_t *par, int64_t x)
@@ -388,6 +397,10 @@ static i2m_err_t make_groups(const i2m_parts_t *all, const int64_t *pairs, size_
   I2M_CALL(i2m_malloc(n ? n : 1, sizeof *par, &par));
   for (size_t i = 0; i < n; i++) par[i] = (int64_t)i;
   for (size_t k = 0; k < npairs; k++) {
+    if (pairs[2 * k] < 0 || pairs[2 * k] >= (int64_t)n || pairs[2 * k + 1] < 0 || pairs[2 * k + 1] >= (int64_t)n) {
+      i2m_free(&par);
+      return I2M_ERROR(I2M_ERR_INTERNAL, "parts %lld and %lld joined, of %zu", (long long)pairs[2 * k], (long long)pairs[2 * k + 1], n);
+    }
     const int64_t a = gfind(par, pairs[2 * k]), b = gfind(par, pairs[2 * k + 1]);
     if (a != b) par[a < b ? b : a] = a < b ? a : b;
   }

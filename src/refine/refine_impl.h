@@ -333,6 +333,7 @@ i2m_err_t tiles_route(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t me
 i2m_err_t tiles_defer(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t meta, pending_t pv);
 /** The tile that holds tet t's centroid, and a tile's colour (0..7). */
 uint32_t tiles_tile_of_tet(const i2m_refine_t *r, uint32_t t);
+uint32_t tiles_tile_of_point(const i2m_refine_t *r, const double x[3]);
 int tiles_color(const tiling_t *g, uint32_t id);
 /** Worker w takes tile id's lists (its wide lists, wide), slots, zone and block (and gives
  *  them back). */
@@ -360,6 +361,9 @@ i2m_err_t dist_note_vertex(i2m_refine_worker_t *w, uint32_t v);
 uint16_t dist_ghost_label(const i2m_refine_t *r, uint32_t t, int i);
 /** Face i of t (another rank's on the other side): its sorted global ids and the cell across. */
 void dist_face(const i2m_refine_t *r, uint32_t t, int i, i2m_gidx_t key[3], int32_t *cell);
+/** The local face (4t + i) with these sorted global ids whose other side is another rank's,
+ *  or I2M_DT_NONE. */
+uint32_t dist_face_at(const i2m_refine_t *r, const i2m_gidx_t key[3]);
 
 /* worker.c */
 i2m_err_t worker_init(i2m_refine_worker_t *w, i2m_refine_t *r, uint32_t owner, bool locking);

@@ -51,6 +51,7 @@ struct submesh {
   uint32_t cap_tmark;
   uint32_t *vmark;   /* [cap_v] scratch: a vertex's index in it (PACK_NONE) */
   uint32_t cap_vmark;
+  int32_t *location; /* [ntiles] the rank that holds each tile, as the dist layer last said */
 };
 
 static uint64_t mix(uint64_t z)
@@ -322,6 +323,7 @@ static void sub_free(struct submesh **Sp)
   i2m_free(&S->rf);
   i2m_free(&S->tmark);
   i2m_free(&S->vmark);
+  i2m_free(&S->location);
   i2m_free(Sp);
 }
 
@@ -354,6 +356,17 @@ void i2m_refine_dist_end(i2m_refine_t *r)
 }
 
 bool i2m_refine_holds(const i2m_refine_t *r, uint32_t id) { return r->tiling->tile[id].held; }
+
+i2m_err_t i2m_refine_dist_set_location(i2m_refine_t *r, const int32_t *holder)
+{
+  struct submesh *S = r->sub;
+  const uint32_t n = r->tiling->ntiles;
+  if (!S->location) I2M_CALL(i2m_malloc(n, sizeof *S->location, &S->location));
+  memcpy(S->location, holder, n * sizeof *holder);
+  return I2M_OK;
+}
+
+const int32_t *i2m_refine_dist_location(const i2m_refine_t *r) { return r->sub ? r->sub->location : NULL; }
 
 /* ---- the submesh buffer ---- */
 
@@ -603,6 +616,7 @@ i2m_err_t i2m_refine_drop(i2m_refine_t *r, uint32_t id)
   i2m_dt_t *dt = r->dt;
   tile_t *tl = &r->tiling->tile[id];
   uint32_t *tets = NULL, *verts = NULL, nt = 0, nv = 0;
+  pieces_invalidate(r);
   I2M_CALL(sub_room(S, dt));
   i2m_err_t err = number_submesh(r, tl, &tets, &nt, &verts, &nv);
   for (uint32_t k = 0; k < nt && err == I2M_OK; k++) { /* faces to the tets that stay become remote */
@@ -772,6 +786,7 @@ i2m_err_t i2m_refine_unpack(i2m_refine_t *r, const void *buf, size_t len, uint32
   const pack_header_t h = *hp;
   tile_t *tl = &r->tiling->tile[h.tile];
   I2M_CHECK(!tl->held, I2M_ERR_INTERNAL, "tile %u arrives at a rank that holds it", h.tile);
+  pieces_invalidate(r);
   const pack_vertex_t *pv = take(&R, (size_t)h.nverts * sizeof *pv);
   const pack_tet_t *pt = take(&R, (size_t)h.ntets * sizeof *pt);
   const int32_t *ext = take(&R, (size_t)h.next * sizeof *ext);
@@ -849,6 +864,12 @@ uint16_t dist_ghost_label(const i2m_refine_t *r, uint32_t t, int i)
   face_key(r->dt, t, i, key);
   const rface_t *f = rf_find(r->sub, key);
   return f ? f->ghost : 0;
+}
+
+uint32_t dist_face_at(const i2m_refine_t *r, const i2m_gidx_t key[3])
+{
+  const rface_t *f = rf_find(r->sub, key);
+  return f ? f->face : I2M_DT_NONE;
 }
 
 void dist_face(const i2m_refine_t *r, uint32_t t, int i, i2m_gidx_t key[3], int32_t *cell)

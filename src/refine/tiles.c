@@ -47,6 +47,14 @@ static void tile_coords(const tiling_t *g, uint32_t id, int32_t c[3])
 }
 
 /* The tile of a tet: the one that holds its centroid. */
+uint32_t tiles_tile_of_point(const i2m_refine_t *r, const double x[3])
+{
+  const tiling_t *g = r->tiling;
+  const int32_t c[3] = {i2m_dt_cell_axis(&g->cells, 0, x[0]), i2m_dt_cell_axis(&g->cells, 1, x[1]),
+                        i2m_dt_cell_axis(&g->cells, 2, x[2])};
+  return tile_index(g, c);
+}
+
 uint32_t tiles_tile_of_tet(const i2m_refine_t *r, uint32_t t)
 {
   int32_t c[3];
@@ -475,11 +483,8 @@ static i2m_err_t adopt_worker_elements(i2m_refine_t *r)
       const pending_t pv = w->pend[i];
       if (r->tiling->octree) { /* the tile that holds the vertex */
         if (r->dt->vkind[pv.v] != I2M_VK_FREE || i2m_dt_gid(r->dt, pv.v) != pv.gid) continue; /* gone */
-        const tiling_t *g = r->tiling;
-        const double *x = i2m_dt_xyz(r->dt, pv.v);
-        const int32_t c[3] = {i2m_dt_cell_axis(&g->cells, 0, x[0]), i2m_dt_cell_axis(&g->cells, 1, x[1]),
-                              i2m_dt_cell_axis(&g->cells, 2, x[2])};
-        I2M_CALL(place(r, (handoff_t){tile_index(g, c), TILE_NONE, 0, -1, 0, 0, pv, HAND_QUEUE}));
+        const uint32_t to = tiles_tile_of_point(r, i2m_dt_xyz(r->dt, pv.v));
+        I2M_CALL(place(r, (handoff_t){to, TILE_NONE, 0, -1, 0, 0, pv, HAND_QUEUE}));
       } else {
         I2M_CALL(seq_append(r->tiling, (handoff_t){TILE_NONE, TILE_NONE, 0, -1, 0, 0, pv, HAND_QUEUE}));
       }
@@ -784,6 +789,7 @@ static i2m_err_t sequential_pass(i2m_refine_t *r)
 i2m_err_t i2m_refine_tiles_prepare(i2m_refine_t *r, const uint32_t *tiles, uint32_t n)
 {
   tiling_t *g = r->tiling;
+  pieces_invalidate(r); /* (the tasks change the mesh) */
   g->nactive = 0;
   for (uint32_t i = 0; i < n; i++) {
     tile_t *tl = &g->tile[tiles[i]];
@@ -796,15 +802,16 @@ i2m_err_t i2m_refine_tiles_prepare(i2m_refine_t *r, const uint32_t *tiles, uint3
   return vgrid_reserve(&r->freev, r->dt->cap_v);
 }
 
-void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t *work, int64_t *wide, int64_t *tets)
+void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t fig[4])
 {
   tile_t *tl = &r->tiling->tile[id];
   if (tl->dirty) tiles_canonical(r, id);
   compact_lists(r->dt, tl->q);
   compact_lists(r->dt, tl->wq);
-  *work = (int64_t)tile_work(tl);
-  *wide = (int64_t)tile_wide_work(tl);
-  *tets = tl->ntets; /* (an estimate: stale entries are dropped when the list grows) */
+  fig[0] = (int64_t)tile_work(tl);
+  fig[1] = (int64_t)tile_wide_work(tl);
+  fig[2] = tl->ntets; /* (an estimate: stale entries are dropped when the list grows) */
+  fig[3] = tl->npts;
 }
 
 void i2m_refine_tiling_cells(const i2m_refine_t *r, int32_t n[3])
@@ -833,6 +840,7 @@ i2m_err_t i2m_refine_tiling_wide_tiles(i2m_refine_t *r, const uint32_t **tiles, 
 i2m_err_t i2m_refine_tile_run_wide(i2m_refine_t *r, int k, uint32_t id)
 {
   tile_t *tl = &r->tiling->tile[id];
+  pieces_invalidate(r); /* (the task changes the mesh) */
   if (tl->dirty) tiles_canonical(r, id);
   I2M_CALL(grant_tile(r, tl, tile_wide_work(tl)));
   I2M_CALL(vgrid_reserve(&r->surf, r->dt->cap_v));
@@ -870,6 +878,23 @@ i2m_err_t i2m_refine_tiling_sequential(i2m_refine_t *r)
   return err;
 }
 
+/* Does stuck tet t break a guarantee?  Not when only the background bound wants it split: a
+ * tet outside every label whose ball meets no interface and whose neighbours are outside too
+ * (the bound is there so that cavities fit zones, and one in the shell around the labelled
+ * block may border the virtual box's tets, which no zone holds). */
+static bool stuck_matters(const i2m_refine_t *r, uint32_t t)
+{
+  tet_geom_t geo;
+  tet_geom(r, t, PROBE_CLOSEST, &geo);
+  if (geo.label != 0 || geo.probe.d2 <= geo.r2) return true;
+  for (int i = 0; i < 4; i++) {
+    const uint32_t nb = r->dt->tn[4 * (size_t)t + i];
+    const int l = nb == I2M_DT_NONE ? 0 : nb == I2M_DT_REMOTE ? dist_ghost_label(r, t, i) : tinfo(r->dt, nb >> 2)->label;
+    if (l != 0) return true;
+  }
+  return false;
+}
+
 i2m_err_t i2m_refine_tiling_check_stuck(i2m_refine_t *r)
 {
   const tiling_t *g = r->tiling;
@@ -877,17 +902,7 @@ i2m_err_t i2m_refine_tiling_check_stuck(i2m_refine_t *r)
   for (size_t i = 0; g && i < g->nstuck; i++) {
     const handoff_t *h = &g->stuck[i];
     if (h->level < 0) n += r->dt->vkind[h->pv.v] == I2M_VK_FREE && i2m_dt_gid(r->dt, h->pv.v) == h->pv.gid;
-    else n += i2m_dt_meta(r->dt, h->t) == h->meta;
-    if (h->level >= 0 && i2m_dt_meta(r->dt, h->t) == h->meta) {
-      tet_geom_t geo;
-      tet_geom(r, h->t, PROBE_CLOSEST, &geo);
-      double c[3];
-      i2m_dt_centroid(r->dt, h->t, c);
-      const tile_t *tl = &g->tile[h->to];
-      i2m_debug("stuck: tile %u level %d centroid (%g %g %g) cc (%g %g %g) r %g label %d; wide zone (%g %g %g)-(%g %g %g) d2 %g",
-                h->to, h->level, c[0], c[1], c[2], geo.cc[0], geo.cc[1], geo.cc[2], sqrt(geo.r2), geo.label, tl->wzone[0],
-                tl->wzone[1], tl->wzone[2], tl->wzone[3], tl->wzone[4], tl->wzone[5], geo.probe.d2);
-    } else if (h->level < 0) i2m_debug("stuck: removal of vertex %u", h->pv.v);
+    else n += i2m_dt_meta(r->dt, h->t) == h->meta && stuck_matters(r, h->t);
   }
   I2M_CHECK(!g || g->stuck_points == 0, I2M_ERR_INTERNAL,
             "%lld points of the component rule could not be inserted inside any subregion's zone (not even a wide one): "

@@ -84,6 +84,7 @@ typedef struct {
   int64_t answered_while_refining; /**< submeshes sent while its threads refined */
   int64_t insertions, removals;
   int64_t tets;           /**< tets it holds at the end (all labels) */
+  int64_t peak_tets;      /**< the most it held at once (all labels) */
   double peak_rss;        /**< bytes */
 } i2m_rank_figures_t;
 

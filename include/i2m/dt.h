@@ -257,6 +257,12 @@ static inline uint32_t i2m_dt_ntets_slots(const i2m_dt_t *dt)
 {
   return atomic_load_explicit(&dt->nt_atomic, memory_order_relaxed);
 }
+/** Number of live tets when no context holds slots of its own (every free slot is on the
+ *  shared free list): no scan. */
+static inline int64_t i2m_dt_live_tets_quiescent(const i2m_dt_t *dt)
+{
+  return (int64_t)i2m_dt_ntets_slots(dt) - (int64_t)dt->nfree_t;
+}
 static inline void *i2m_dt_payload(const i2m_dt_t *dt, uint32_t t) { return dt->tpay + dt->pay_size * t; }
 
 /** Tet t's centroid, summed in its vertex order. */

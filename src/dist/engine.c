@@ -294,6 +294,13 @@ static void on_data(engine_t *E, void *buf, int len)
   E->batch_bytes_in += len;
 }
 
+/* The most tets this rank held at once (at a quiescent moment, after submeshes arrived). */
+static void note_peak(engine_t *E)
+{
+  const int64_t n = i2m_dt_live_tets_quiescent(i2m_refine_dt(E->r));
+  if (n > E->fig.peak_tets) E->fig.peak_tets = n;
+}
+
 /* Every submesh here and no job running: the cells sent away leave, the ones that came are
  * joined, the batch's tiles get their slots, and the job starts. */
 static void start_batch(engine_t *E)
@@ -312,6 +319,7 @@ static void start_batch(engine_t *E)
     i2m_refine_dist_resolve(E->r, E->batch[k].cell);
   }
   if (!wide) check(E, i2m_refine_tiles_prepare(E->r, E->tiles, E->nbatch));
+  note_peak(E);
   clock_out(E, t);
   if (E->o->inject_failure == E->par->rank && E->batches == 3)
     fail(E, "injected failure (I2M_INJECT_FAILURE) in the middle of refinement");
@@ -335,6 +343,7 @@ static void finish_batch(engine_t *E)
   check(E, i2m_refine_tiling_merge(E->r));
   check(E, i2m_refine_dist_merge(E->r));
   apply_drops(E);
+  note_peak(E);
   uint32_t *cells = NULL;
   const uint32_t nc = batch_cells(E, &cells);
   int64_t *m = NULL;

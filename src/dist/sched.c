@@ -137,8 +137,28 @@ static int64_t to_move(const sched_t *S, int rank, sched_task_t t)
   return m;
 }
 
+/* The tets each rank holds, and in all (the last figures fed back). */
+static int64_t held_tets(const sched_t *S, int rank, int64_t *total)
+{
+  int64_t mine = 0;
+  *total = 0;
+  for (uint32_t c = 0; c < S->ncells; c++) {
+    *total += S->tets[c];
+    if (S->holder[c] == rank) mine += S->tets[c];
+  }
+  return mine;
+}
+
 uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
 {
+  int64_t total;
+  const int64_t held = held_tets(S, rank, &total);
+  /* a rank that fetches data may not come to hold much more than its share: memory stays
+   * spread (the data follows the work, but not all of it to the fastest rank) */
+  int64_t cap = S->nranks > 1 ? (int64_t)((double)total * SCHED_HOLD_SHARE / S->nranks) : INT64_MAX;
+  bool stalled = true; /* (nothing in flight, every other rank waiting: none would ever be served) */
+  for (int q = 0; q < S->nranks; q++) stalled &= S->inflight[q] == 0 && (q == rank || S->waiting[q] || S->done[q]);
+  if (stalled) cap = INT64_MAX;
   uint32_t k = 0;
   while (k < max) {
     sched_task_t best = {0, false};
@@ -149,6 +169,7 @@ uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
       if (!sched_runnable(S, t)) continue;
       const int h = S->home[c] == rank;
       const int64_t m = to_move(S, rank, t);
+      if (m > 0 && held + m > cap) continue;
       if (m < best_move || (m == best_move && (h > best_home || (h == best_home && S->work[c] > best_work)))) {
         best = t;
         best_home = h;
@@ -160,6 +181,8 @@ uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
       for (uint32_t c = 0; c < S->ncells; c++) {
         const sched_task_t t = {c, true};
         if (!sched_runnable(S, t)) continue;
+        const int64_t m = to_move(S, rank, t);
+        if (m > 0 && held + m > cap) continue;
         sched_give(S, rank, t);
         out[0] = t;
         return 1;

@@ -19,6 +19,10 @@
 
 #include "i2m/base.h"
 
+/** A rank that fetches submeshes for a task may come to hold at most this many times its
+ *  share (1 / ranks) of the tets (then it takes only tasks whose data it holds). */
+#define SCHED_HOLD_SHARE 1.3
+
 /** A task: a cell (wide: its wide task, a block of 5^3 cells). */
 typedef struct {
   uint32_t cell;
@@ -65,7 +69,8 @@ bool sched_runnable(const sched_t *S, sched_task_t t);
 
 /** Up to max tasks for `rank` (asynchronous mode): cells with work whose blocks are free and
  *  do not overlap each other: cells of its share first, those whose block it holds most of
- *  first (then the busiest); then others' (the data follows the work).  Their blocks are
+ *  first (then the busiest); then others' (the data follows the work, while the rank holds
+ *  less than SCHED_HOLD_SHARE times its share of the tets).  Their blocks are
  *  locked and now belong to the rank.  Returns their number (0: nothing can run now).  A wide
  *  task comes alone. */
 uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out);

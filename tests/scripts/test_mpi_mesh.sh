@@ -1,0 +1,129 @@
+#!/bin/sh
+# The distributed level, end to end: a synthetic image cut into 64 subregions (--depth 2) and
+# two real images, each meshed at 1, 2 and 4 ranks (oversubscribed) x 1 and 2 threads under
+# mpirun, each run under a timeout.  Every mesh (stitched by rank 0, or written as .pvtu
+# pieces) must meet every guarantee of the one-process mesh (guarantees.sh, and every image
+# component of >= 10,000 voxels in one piece), and its element count, per-label volumes
+# (labels of >= 1,000 voxels) and 99th-percentile interface distance must lie within 1% of the
+# one-process run's with the same subregions (--deterministic on one process: the same coarse
+# mesh, octree and background bound; the default one-process run, which needs no subregions,
+# is shown beside it).  The run must really be distributed: every rank ran tasks and inserted
+# points, the ranks' insertions add up to within 10% of the one process's, some rank answered
+# a request for submeshes while its threads refined, and at 2 ranks no rank ever held more than
+# 75% of the final tets (real images).  --deterministic: the same checksum on one process and
+# at 1, 2 and 4 ranks x 1 and 2 threads.
+set -eu
+. "$(dirname "$0")/guarantees.sh"
+if ! command -v mpirun >/dev/null 2>&1; then
+  echo "SKIP: no mpirun"
+  exit 0
+fi
+export OMPI_MCA_mpi_yield_when_idle=1 OMPI_MCA_rmaps_base_oversubscribe=1
+MPIRUN="mpirun --oversubscribe --bind-to none"
+[ "$(id -u)" = 0 ] && MPIRUN="$MPIRUN --allow-run-as-root"
+mpirun --version 2>/dev/null | grep -qi "open mpi" || MPIRUN="mpirun" # (MPICH: no such flags)
+fail=0
+"$BIN/i2m-mkimage" --shape shells --dims 64,64,64 -o "$TMP/shells.nrrd"
+
+
+# compare REF.json RUN.json REPORT_REF.json REPORT_RUN.json RANKS [peak] SPEC_REPORT.json: the 1%
+# and the distributed checks (checker's JSON for the meshes, i2m's reports for the runs)
+compare() {
+  "$PY" - "$@" <<'EOF'
+import json, sys
+ref, run, rref, rrun, ranks = json.load(open(sys.argv[1])), json.load(open(sys.argv[2])), \
+    json.load(open(sys.argv[3])), json.load(open(sys.argv[4])), int(sys.argv[5])
+bad = []
+def within(what, a, b, tol):
+    if abs(a - b) > tol * abs(b): bad.append("%s %.6g vs %.6g one process (more than %g%%)" % (what, a, b, 100 * tol))
+within("tets", run["mesh"]["tetrahedra"], ref["mesh"]["tetrahedra"], 0.01)
+within("p99 distance", run["fidelity"]["hausdorff"]["p99_mm"], ref["fidelity"]["hausdorff"]["p99_mm"], 0.01)
+rl = {l["label"]: l for l in ref["fidelity"]["labels"]}
+for l in run["fidelity"]["labels"]:
+    if l["voxels"] >= 1000 and l["label"] in rl:
+        within("label %d volume" % l["label"], l["mesh_volume"], rl[l["label"]]["mesh_volume"], 0.01)
+d = rrun["dist"]
+ranks_seen = d["per_rank"]
+if len(ranks_seen) != ranks: bad.append("%d ranks in the report" % len(ranks_seen))
+for g in ranks_seen:
+    if g["tasks"] <= 0 or g["insertions"] <= 0:
+        bad.append("rank %d ran %d tasks, %d insertions" % (g["rank"], g["tasks"], g["insertions"]))
+ins = sum(g["insertions"] for g in ranks_seen)
+within("insertions", ins, rref["refinement"]["insertions"], 0.10)
+if ranks > 1 and sum(g["answered_while_refining"] for g in ranks_seen) == 0:
+    bad.append("no rank answered a request while its threads refined")
+final = sum(g["tets"] for g in ranks_seen)
+peak = max(g["peak_tets"] for g in ranks_seen)
+print("   tets %d, p99 %.4f mm, insertions %d (one process %d), peak held %.0f%% of %d, answered while refining %d, bytes/tet %.0f" % (
+    run["mesh"]["tetrahedra"], run["fidelity"]["hausdorff"]["p99_mm"], ins, rref["refinement"]["insertions"],
+    100.0 * peak / final, final, sum(g["answered_while_refining"] for g in ranks_seen), d["bytes_moved"] / max(1, run["mesh"]["tetrahedra"])))
+spec = json.load(open(sys.argv[7]))["refinement"]["insertions"]
+print("   (the default one-process run: %d insertions, %+.1f%%)" % (spec, 100.0 * (ins - spec) / spec))
+if sys.argv[6] == "peak" and ranks == 2 and peak > 0.75 * final:
+    bad.append("a rank held %d tets at once, more than 75%% of the final %d" % (peak, final))
+for b in bad: print("   " + b)
+sys.exit(1 if bad else 0)
+EOF
+}
+
+checksum() { "$PY" -c "import json,sys; print(json.load(open(sys.argv[1]))['counts']['checksum'])" "$1"; }
+
+# one image: $1 path, $2 i2m options, $3 "peak" to assert the 75% bound
+run_image() {
+  img=$1 opts=$2 name=$(basename "$1")
+  # shellcheck disable=SC2086 # (opts: words)
+  if ! timeout 300 "$BIN/i2m" "$img" -o "$TMP/ref.vtu" --deterministic --threads 2 $opts --quiet --report "$TMP/ref_rep.json" ||
+    ! timeout 300 "$BIN/i2m" "$img" -o "$TMP/spec.vtu" --threads 2 $opts --quiet --report "$TMP/spec_rep.json"; then
+    echo "FAIL $name: the one-process run failed"; fail=1; return
+  fi
+  "$BIN/i2m-check" "$TMP/ref.vtu" --image "$img" --json >"$TMP/ref.json" || true
+  for np in 1 2 4; do
+    for t in 1 2; do
+      out="$TMP/m.vtu"
+      [ $((np * t % 4)) = 0 ] && [ -n "${I2M_TEST_PVTU:-}" ] && out="$TMP/m.pvtu" # (some runs write pieces)
+      rm -f "$TMP"/m*.vtu "$TMP"/m.pvtu
+      # shellcheck disable=SC2086
+      if ! timeout 300 $MPIRUN -np $np "$BIN/i2m" "$img" -o "$out" --threads $t $opts --quiet --report "$TMP/rep.json" \
+        >"$TMP/log" 2>&1; then
+        echo "FAIL $name, $np ranks x $t threads: i2m failed or timed out"; tail -5 "$TMP/log"; fail=1; continue
+      fi
+      if ! check_guarantees "$out" "$img" "$TMP/rep.json" --require-whole 10000 --json >"$TMP/run.json" 2>"$TMP/check.err"; then
+        echo "FAIL $name, $np ranks x $t threads: a guarantee is broken"
+        "$PY" -c "import json,sys; print(json.load(open(sys.argv[1])).get('violations'))" "$TMP/run.json" 2>/dev/null || cat "$TMP/check.err"
+        fail=1; continue
+      fi
+      if compare "$TMP/ref.json" "$TMP/run.json" "$TMP/ref_rep.json" "$TMP/rep.json" $np "${3:-none}" "$TMP/spec_rep.json" >"$TMP/cmp.txt"; then
+        echo "ok   $name, $np ranks x $t threads ($(basename "$out")): every guarantee, within 1% of one process"
+        cat "$TMP/cmp.txt"
+      else
+        echo "FAIL $name, $np ranks x $t threads:"; cat "$TMP/cmp.txt"; fail=1
+      fi
+    done
+  done
+}
+
+run_image "$TMP/shells.nrrd" "--depth 2" none
+run_image "$DATA/spine_verse009.nii.gz" "" peak
+run_image "$DATA/vertebrae_vbseg.mha" "" peak
+
+# --deterministic: one mesh, whoever makes it
+for img in "$TMP/shells.nrrd" "$DATA/vertebrae_vbseg.mha"; do
+  name=$(basename "$img")
+  timeout 300 "$BIN/i2m" "$img" -o "$TMP/d.vtu" --deterministic --threads 2 --quiet --report "$TMP/d0.json"
+  want=$(checksum "$TMP/d0.json")
+  runs="1 1,1 2,2 1,2 2,4 1"
+  [ "$name" = shells.nrrd ] || runs="2 2,4 1" # (the real image: two of them)
+  IFS=,
+  for run in $runs; do
+    IFS=" "
+    set -- $run
+    if ! timeout 300 $MPIRUN -np "$1" "$BIN/i2m" "$img" -o "$TMP/d.vtu" --deterministic --threads "$2" --quiet \
+      --report "$TMP/d.json" >"$TMP/log" 2>&1; then
+      echo "FAIL $name deterministic, $1 ranks x $2 threads: i2m failed"; tail -5 "$TMP/log"; fail=1; continue
+    fi
+    got=$(checksum "$TMP/d.json")
+    if [ "$got" = "$want" ]; then echo "ok   $name deterministic, $1 ranks x $2 threads: checksum $got, as one process"
+    else echo "FAIL $name deterministic, $1 ranks x $2 threads: checksum $got, one process $want"; fail=1; fi
+  done
+done
+exit $fail

@@ -1,6 +1,6 @@
 /* Tests of the mesh writers (src/io) and of the independent checker (tools/check), whose
  * sources are compiled into this program (#include below) so that the checker's readers and
- * figures can be called directly.
+ * figures can be called directly (pieces of a .pvtu written by the VTU writer too).
  *
  * Meshes are built from small labelled voxel images: every labelled voxel is split into the
  * 6 positive tetrahedra of its Kuhn subdivision (all cubes cut along the same diagonal, so the
@@ -22,6 +22,7 @@
 
 #include "../../tools/check/ck_geom.c"
 #include "../../tools/check/fidelity.c"
+#include "../../tools/check/pvtu.c"
 #include "../../tools/check/quality.c"
 #include "../../tools/check/read_mesh.c"
 #include "../../tools/check/validity.c"
@@ -419,6 +420,90 @@ static void test_vtu_variants(void)
   fclose(f);
   CU_ASSERT_EQUAL(ck_mesh_read(path, &m), I2M_ERR_INPUT);
   CU_ASSERT(strstr(i2m_error_message(), "connectivity") != NULL);
+}
+
+/* ------------------------------------------------------------------ pieces (.pvtu) */
+
+/* Tets t0 .. t1-1 of m as a piece: the vertices they use, renumbered, with global ids
+ * offset + their index in m. */
+static i2m_tetmesh_t *piece_of(const i2m_tetmesh_t *m, int64_t t0, int64_t t1, int64_t offset)
+{
+  int32_t *loc = malloc((size_t)m->nv * sizeof *loc);
+  int64_t nv = 0;
+  for (int64_t v = 0; v < m->nv; v++) loc[v] = -1;
+  for (int64_t i = 4 * t0; i < 4 * t1; i++)
+    if (loc[m->tet[i]] < 0) loc[m->tet[i]] = (int32_t)nv++;
+  i2m_tetmesh_t *p = NULL;
+  BUILD_CHECK(i2m_tetmesh_create(nv, t1 - t0, 0, &p) == I2M_OK);
+  p->gid = malloc((size_t)nv * sizeof *p->gid);
+  for (int64_t v = 0; v < m->nv; v++) {
+    if (loc[v] < 0) continue;
+    memcpy(p->xyz + 3 * loc[v], m->xyz + 3 * v, 3 * sizeof *p->xyz);
+    p->gid[loc[v]] = offset + v;
+  }
+  for (int64_t i = 4 * t0; i < 4 * t1; i++) p->tet[i - 4 * t0] = loc[m->tet[i]];
+  memcpy(p->tet_label, m->tet_label + t0, (size_t)(t1 - t0) * sizeof *p->tet_label);
+  free(loc);
+  return p;
+}
+
+/* Writes the two pieces with the VTU writer and pv.pvtu naming them; reads it back. */
+static i2m_err_t write_read_pieces(i2m_tetmesh_t *const p[2], ck_mesh_t *c)
+{
+  CU_ASSERT_FATAL(i2m_mesh_write(p[0], tmp_path("pv_0.vtu")) == I2M_OK);
+  CU_ASSERT_FATAL(i2m_mesh_write(p[1], tmp_path("pv_1.vtu")) == I2M_OK);
+  FILE *f = fopen(tmp_path("pv.pvtu"), "w");
+  CU_ASSERT_FATAL(f != NULL);
+  fputs("<?xml version=\"1.0\"?>\n<VTKFile type=\"PUnstructuredGrid\" version=\"1.0\">\n"
+        "<PUnstructuredGrid GhostLevel=\"0\">\n<Piece Source=\"pv_0.vtu\"/>\n"
+        "<Piece Source=\"pv_1.vtu\"/>\n</PUnstructuredGrid>\n</VTKFile>\n", f);
+  fclose(f);
+  return ck_mesh_read(tmp_path("pv.pvtu"), c);
+}
+
+static i2m_err_t stitched_validity(const ck_mesh_t *c, ck_validity_t *v)
+{
+  ck_topo_t topo;
+  i2m_err_t err = ck_validity(c, v, &topo);
+  if (err == I2M_OK) err = ck_stitch_check(c, &topo, v);
+  ck_topo_free(&topo);
+  return err;
+}
+
+/* A mesh written as two pieces by the writer is the whole mesh again once stitched; a shared
+ * vertex moved in one piece is a stitching error. */
+static void test_pvtu_pieces(void)
+{
+  i2m_tetmesh_t *m = small_mesh();
+  i2m_tetmesh_t *p[2] = {piece_of(m, 0, m->nt / 2, 100), piece_of(m, m->nt / 2, m->nt, 100)};
+  ck_mesh_t c;
+  ck_validity_t v;
+  CU_ASSERT_FATAL(write_read_pieces(p, &c) == I2M_OK);
+  CU_ASSERT_FATAL(c.stitch != NULL && c.stitch->npieces == 2);
+  CU_ASSERT(c.nv == m->nv && c.nt == m->nt && strcmp(c.format, "pvtu") == 0);
+  CU_ASSERT(c.stitch->vertices_before == p[0]->nv + p[1]->nv);
+  CU_ASSERT(c.stitch->seam_vertices > 0 && c.stitch->seam_vertices == p[0]->nv + p[1]->nv - m->nv);
+  for (int64_t k = 0; k < c.nv; k++)
+    CU_ASSERT(memcmp(c.xyz + 3 * k, m->xyz + 3 * (c.gid[k] - 100), 3 * sizeof(double)) == 0);
+  CU_ASSERT_FATAL(stitched_validity(&c, &v) == I2M_OK);
+  CU_ASSERT(v.valid && c.stitch->seams_checked && c.stitch->one_sided_faces == 0);
+  ck_mesh_free(&c);
+  /* a vertex of piece 1 that piece 0 has too, one ulp away */
+  int64_t shared = -1;
+  for (int64_t i = 0; i < p[1]->nv && shared < 0; i++)
+    for (int64_t j = 0; j < p[0]->nv; j++)
+      if (p[0]->gid[j] == p[1]->gid[i]) shared = i;
+  CU_ASSERT_FATAL(shared >= 0);
+  p[1]->xyz[3 * shared] = nextafter(p[1]->xyz[3 * shared], INFINITY);
+  CU_ASSERT_FATAL(write_read_pieces(p, &c) == I2M_OK);
+  CU_ASSERT(c.stitch->coordinate_mismatches == 1);
+  CU_ASSERT(strstr(c.stitch->first_mismatch, "in piece 0") != NULL);
+  CU_ASSERT_FATAL(stitched_validity(&c, &v) == I2M_OK);
+  CU_ASSERT(!v.valid && strstr(v.errors, "stitch_coordinate_mismatch") != NULL);
+  ck_mesh_free(&c);
+  i2m_tetmesh_destroy(&p[0]);
+  i2m_tetmesh_destroy(&p[1]);
+  i2m_tetmesh_destroy(&m);
 }
 
 /* ------------------------------------------------------------------ validity and quality */
@@ -822,6 +907,7 @@ static const test_case_t cases[] = {
     {"roundtrip_gmsh", test_roundtrip_gmsh},
     {"vtu_wide_labels", test_vtu_wide_labels},
     {"vtu_variants", test_vtu_variants},
+    {"pvtu_pieces", test_pvtu_pieces},
     {"write_errors", test_write_errors},
     {"validity_defects", test_validity_defects},
     {"orient_exact", test_orient_exact},
@@ -837,7 +923,8 @@ static void remove_tmpdir(void)
 {
   if (!tmpdir[0]) return;
   const char *names[] = {"a.vtu", "a.mesh", "a.msh", "ascii.msh", "wide.vtu", "bad.vtu",
-                         "zero.msh", "x.obj", "full.msh", "ascii.vtu", "u32.vtu"};
+                         "zero.msh", "x.obj", "full.msh", "ascii.vtu", "u32.vtu",
+                         "pv_0.vtu", "pv_1.vtu", "pv.pvtu"};
   for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) unlink(tmp_path(names[i]));
   rmdir(tmpdir);
 }

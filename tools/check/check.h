@@ -1,26 +1,30 @@
 /* i2m-check (tools/check): an independent checker of written meshes.  It reads a mesh file
- * (VTU, Medit, Gmsh 4.1), recomputes validity, quality and, with the image, fidelity, with
- * its own geometry code (it never uses src/geom or src/delaunay: it must not share a bug with
- * the mesher).  From libi2m it uses only the base utilities and the image layer (reader,
- * connected components).
+ * (VTU, Medit, Gmsh 4.1, or the pieces of a .pvtu stitched by global id), recomputes
+ * validity, quality and, with the image, fidelity, with its own geometry code (it never uses
+ * src/geom or src/delaunay: it must not share a bug with the mesher).  From libi2m it uses
+ * only the base utilities and the image layer (reader, connected components).
  *
- * Files: read_mesh.c (the three formats), ck_geom.c (exact orientation, distances,
- * angles), validity.c (indices, orientation, face matching, vertices, interface triangles),
- * quality.c, fidelity.c (image interfaces, two-sided distances, volumes, components),
- * plot.c (SVG), report.c (text and JSON), check_main.c (options, thresholds, exit code). */
+ * Files: read_mesh.c (the formats), pvtu.c (pieces stitched, seams checked), ck_geom.c
+ * (exact orientation, distances, angles, a grid of buckets), validity.c (indices,
+ * orientation, face matching, vertices, interface triangles), quality.c, fidelity.c (image
+ * interfaces, two-sided distances, volumes, components), plot.c (SVG), report.c (text and
+ * JSON), check_main.c (options, thresholds, exit code). */
 #ifndef I2M_CHECK_H
 #define I2M_CHECK_H
 
 #include "i2m/base.h"
 #include "i2m/image.h"
 
+#include <math.h>
 #include <stdio.h>
 
 #define CK_PI 3.14159265358979323846
 
 /* ---- the mesh as read from the file ---- */
+typedef struct ck_stitch ck_stitch_t;
+
 typedef struct {
-  char format[8];     /* "vtu", "medit", "gmsh" */
+  char format[8];     /* "vtu", "pvtu", "medit", "gmsh" */
   const char *path;   /* borrowed: the file name, for messages */
   int64_t nv;
   double *xyz;        /* owned: [nv][3] world coordinates */
@@ -33,12 +37,48 @@ typedef struct {
   int64_t *tri;       /* owned: [ntri][3] 0-based vertex ids */
   int64_t *tri_label; /* owned: [ntri][2] label pair (a <= b), valid if tri_labels_known */
   int64_t ignored_cells; /* cells of other kinds skipped by the reader */
+  int has_gid;        /* a VTU file with the point data GlobalNodeId */
+  int64_t *gid;       /* owned: [nv] GlobalNodeId (VTU with has_gid; a .pvtu: -1 for the
+                         vertices of pieces without ids) */
+  ck_stitch_t *stitch; /* owned: how a .pvtu's pieces were stitched; NULL for one file */
 } ck_mesh_t;
 
 /** Reads a mesh file (format by extension, .vtu .mesh .msh).  On error the message names the
  *  file and the problem; *m is left empty. */
 i2m_err_t ck_mesh_read(const char *path, ck_mesh_t *m);
 void ck_mesh_free(ck_mesh_t *m);
+
+/* ---- a distributed mesh (.pvtu): pieces stitched by global id (pvtu.c) ---- */
+#define CK_STITCH_MSG 512
+struct ck_stitch {
+  int npieces;
+  char **piece_path;    /* owned: [npieces] piece files, relative to the working directory */
+  int64_t *piece_nv;    /* owned: [npieces] vertices of each piece */
+  int64_t *tet_start;   /* owned: [npieces + 1] piece p's tets are tet_start[p] .. [p+1]-1 of
+                           the stitched mesh, in the piece's order */
+  int8_t *piece_has_gid; /* owned: [npieces] */
+  int32_t *vert_pieces; /* owned: [nv] pieces holding each stitched vertex */
+  int64_t vertices_before, seam_vertices; /* seam: a global id seen in 2+ pieces */
+  /* errors (each makes the stitched mesh invalid) and the first of each kind */
+  int64_t coordinate_mismatches; /* (a) one global id, different coordinates */
+  int64_t shared_points;         /* (b) two global ids at one point */
+  int64_t pieces_without_ids;    /* (c) a piece without GlobalNodeId */
+  int seams_checked;             /* the faces below were looked for */
+  int64_t seam_boundary_faces;   /* boundary faces with three seam vertices */
+  int64_t one_sided_faces;       /* (d) ... whose outer side another piece meshes */
+  char first_mismatch[CK_STITCH_MSG], first_shared[CK_STITCH_MSG], first_without_ids[CK_STITCH_MSG],
+      first_one_sided[CK_STITCH_MSG];
+};
+
+/** Reads a .pvtu: every piece with ck_mesh_read, stitched into *m by GlobalNodeId; m->stitch
+ *  records the pieces and the stitching errors (a)-(c).  A piece that cannot be read (a
+ *  missing file) is an error naming it. */
+i2m_err_t ck_pvtu_read(const char *path, ck_mesh_t *m);
+/** The piece files a .pvtu names (owned: free with ck_pvtu_pieces_free), resolved relative to
+ *  its directory. */
+i2m_err_t ck_pvtu_pieces(const char *path, char ***pieces, int *npieces);
+void ck_pvtu_pieces_free(char ***pieces, int npieces);
+void ck_stitch_free(ck_stitch_t **st);
 
 /* ---- interface triangles derived from the tetrahedra ---- */
 typedef struct {
@@ -80,6 +120,11 @@ typedef struct {
 
 i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo);
 void ck_topo_free(ck_topo_t *t);
+/** Appends a defect name to v->errors and marks the mesh invalid. */
+void ck_validity_add_error(ck_validity_t *v, const char *name);
+/** For a stitched mesh (m->stitch): looks for faces seen by one side only (d, with the face
+ *  adjacency of @p topo when validity computed it) and adds every stitching error to @p v. */
+i2m_err_t ck_stitch_check(const ck_mesh_t *m, const ck_topo_t *topo, ck_validity_t *v);
 
 /* ---- quality ---- */
 #define CK_HIST_BINS 180
@@ -183,6 +228,30 @@ int ck_circumcentre(const double p0[3], const double p1[3], const double p2[3], 
 double ck_min_angle_deg(const double a[3], const double b[3], const double c[3]);
 /** Value with nearest rank q (0..1) of a[0..n-1]; reorders a. */
 double ck_percentile(double *a, int64_t n, double q);
+
+/* ---- a uniform grid of buckets over items with bounding boxes (ck_geom.c) ---- */
+typedef struct {
+  double lo[3], h[3]; /* set by the caller: lower corner, cell edges */
+  int64_t n[3];       /* set by the caller: cells per axis */
+  int64_t *start;     /* owned: [cells+1] */
+  int64_t *item;      /* owned: items of each cell */
+  int64_t nitems;
+} ck_grid_t;
+
+typedef void (*ck_bbox_fn)(const void *ctx, int64_t i, double lo[3], double hi[3]);
+
+/** The cell along axis a that holds coordinate x (clamped to the grid). */
+static inline int64_t ck_grid_cell(const ck_grid_t *g, int a, double x)
+{
+  double u = floor((x - g->lo[a]) / g->h[a]);
+  if (!(u >= 0)) return 0;
+  if (u >= (double)g->n[a]) return g->n[a] - 1;
+  return (int64_t)u;
+}
+
+/** Files items 0..nitems-1 in every cell their box (from @p bbox) meets; g->lo, h, n set. */
+i2m_err_t ck_grid_build(ck_grid_t *g, int64_t nitems, ck_bbox_fn bbox, const void *ctx);
+void ck_grid_free(ck_grid_t *g);
 
 /* ---- helpers ---- */
 static inline int64_t ck_uf_find(int64_t *par, int64_t x)

@@ -11,7 +11,8 @@
 
 static const char *USAGE =
     "usage: i2m-check MESH [--image IMAGE] [--json] [--plot DIR] [thresholds]\n"
-    "  MESH                 .vtu, .mesh (Medit) or .msh (Gmsh 4.1) file\n"
+    "  MESH                 .vtu, .mesh (Medit) or .msh (Gmsh 4.1) file, or a .pvtu: its\n"
+    "                       pieces stitched by GlobalNodeId, the seams checked\n"
     "  --image IMAGE        label image for fidelity figures (NRRD, NIfTI, MetaImage, INR)\n"
     "  --json               print one JSON object instead of the summary\n"
     "  --no-distances       with --image: volumes, labels and components only (no interface\n"
@@ -193,6 +194,7 @@ static int run(const opts_t *o, ck_result_t *r)
   r->t_read = i2m_wtime() - t0;
   double t = i2m_wtime();
   if (ck_validity(&m, &r->validity, &topo) != I2M_OK) goto fail;
+  if (ck_stitch_check(&m, &topo, &r->validity) != I2M_OK) goto fail;
   r->t_validity = i2m_wtime() - t;
   if (!r->validity.bad_index && !r->validity.nonfinite && m.nt > 0) {
     t = i2m_wtime();

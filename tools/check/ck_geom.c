@@ -1,7 +1,7 @@
 /* i2m-check: the checker's own geometry.  An exact orientation test (a floating-point
  * filter, then exact expansion arithmetic after Shewchuk's two-sum / two-product), distances
- * from a point to a triangle, planar angles, percentiles.  Deliberately independent of
- * src/geom.  Compiled with -ffp-contract=off (project-wide FPFLAGS). */
+ * from a point to a triangle, planar angles, percentiles, a uniform grid of buckets.
+ * Deliberately independent of src/geom.  Compiled with -ffp-contract=off (project-wide FPFLAGS). */
 #include "check.h"
 
 #include <float.h>
@@ -286,4 +286,47 @@ double ck_percentile(double *a, int64_t n, double q)
       break;
   }
   return a[k];
+}
+
+/* ---- a uniform grid of buckets over items with bounding boxes ---- */
+i2m_err_t ck_grid_build(ck_grid_t *g, int64_t nitems, ck_bbox_fn bbox, const void *ctx)
+{
+  int64_t ncell = g->n[0] * g->n[1] * g->n[2];
+  g->nitems = nitems;
+  I2M_CALL(i2m_calloc((size_t)ncell + 1, sizeof *g->start, &g->start));
+  for (int pass = 0; pass < 2; pass++) {
+    if (pass == 1) {
+      for (int64_t c = 0; c < ncell; c++) g->start[c + 1] += g->start[c];
+      I2M_CALL(i2m_malloc((size_t)g->start[ncell], sizeof *g->item, &g->item));
+    }
+    for (int64_t i = 0; i < nitems; i++) {
+      double lo[3], hi[3];
+      int64_t c0[3], c1[3];
+      bbox(ctx, i, lo, hi);
+      for (int a = 0; a < 3; a++) {
+        c0[a] = ck_grid_cell(g, a, lo[a]);
+        c1[a] = ck_grid_cell(g, a, hi[a]);
+      }
+      for (int64_t z = c0[2]; z <= c1[2]; z++)
+        for (int64_t y = c0[1]; y <= c1[1]; y++)
+          for (int64_t x = c0[0]; x <= c1[0]; x++) {
+            int64_t c = (z * g->n[1] + y) * g->n[0] + x;
+            if (pass == 0)
+              g->start[c + 1]++;
+            else
+              g->item[g->start[c]++] = i;
+          }
+    }
+    if (pass == 1) { /* restore starts */
+      for (int64_t c = ncell; c > 0; c--) g->start[c] = g->start[c - 1];
+      g->start[0] = 0;
+    }
+  }
+  return I2M_OK;
+}
+
+void ck_grid_free(ck_grid_t *g)
+{
+  i2m_free(&g->start);
+  i2m_free(&g->item);
 }

@@ -25,67 +25,7 @@
 #define CK_OMP(x)
 #endif
 
-/* ---- a uniform grid of buckets over items with bounding boxes ---- */
-typedef struct {
-  double lo[3], h[3];
-  int64_t n[3];
-  int64_t *start; /* owned: [cells+1] */
-  int64_t *item;  /* owned: items of each cell */
-  int64_t nitems;
-} grid_t;
-
-typedef void (*bbox_fn)(const void *ctx, int64_t i, double lo[3], double hi[3]);
 typedef double (*dist_fn)(const void *ctx, int64_t i, const double p[3]);
-
-static int64_t cell_of(const grid_t *g, int a, double x)
-{
-  double u = floor((x - g->lo[a]) / g->h[a]);
-  if (!(u >= 0)) return 0;
-  if (u >= (double)g->n[a]) return g->n[a] - 1;
-  return (int64_t)u;
-}
-
-static i2m_err_t grid_build(grid_t *g, int64_t nitems, bbox_fn bbox, const void *ctx)
-{
-  int64_t ncell = g->n[0] * g->n[1] * g->n[2];
-  g->nitems = nitems;
-  I2M_CALL(i2m_calloc((size_t)ncell + 1, sizeof *g->start, &g->start));
-  for (int pass = 0; pass < 2; pass++) {
-    if (pass == 1) {
-      for (int64_t c = 0; c < ncell; c++) g->start[c + 1] += g->start[c];
-      I2M_CALL(i2m_malloc((size_t)g->start[ncell], sizeof *g->item, &g->item));
-    }
-    for (int64_t i = 0; i < nitems; i++) {
-      double lo[3], hi[3];
-      int64_t c0[3], c1[3];
-      bbox(ctx, i, lo, hi);
-      for (int a = 0; a < 3; a++) {
-        c0[a] = cell_of(g, a, lo[a]);
-        c1[a] = cell_of(g, a, hi[a]);
-      }
-      for (int64_t z = c0[2]; z <= c1[2]; z++)
-        for (int64_t y = c0[1]; y <= c1[1]; y++)
-          for (int64_t x = c0[0]; x <= c1[0]; x++) {
-            int64_t c = (z * g->n[1] + y) * g->n[0] + x;
-            if (pass == 0)
-              g->start[c + 1]++;
-            else
-              g->item[g->start[c]++] = i;
-          }
-    }
-    if (pass == 1) { /* restore starts */
-      for (int64_t c = ncell; c > 0; c--) g->start[c] = g->start[c - 1];
-      g->start[0] = 0;
-    }
-  }
-  return I2M_OK;
-}
-
-static void grid_free(grid_t *g)
-{
-  i2m_free(&g->start);
-  i2m_free(&g->item);
-}
 
 static inline double gap(double lo, double hi, double x)
 {
@@ -95,7 +35,7 @@ static inline double gap(double lo, double hi, double x)
 /* Exact distance from p to the nearest item, given an upper bound ub (INFINITY if none).
  * The searched box grows from one cell by doubling until it holds the answer; ub only
  * prunes (a far ub never makes the box large). */
-static double grid_nearest(const grid_t *g, const double p[3], double ub, dist_fn dist,
+static double grid_nearest(const ck_grid_t *g, const double p[3], double ub, dist_fn dist,
                            const void *ctx, int64_t *hint)
 {
   if (g->nitems == 0) return INFINITY;
@@ -114,8 +54,8 @@ static double grid_nearest(const grid_t *g, const double p[3], double ub, dist_f
     int64_t c0[3], c1[3];
     int all = 1;
     for (int a = 0; a < 3; a++) {
-      c0[a] = cell_of(g, a, p[a] - r);
-      c1[a] = cell_of(g, a, p[a] + r);
+      c0[a] = ck_grid_cell(g, a, p[a] - r);
+      c1[a] = ck_grid_cell(g, a, p[a] + r);
       all &= p[a] - r <= g->lo[a] && p[a] + r >= g->lo[a] + (double)g->n[a] * g->h[a];
     }
     for (int64_t z = c0[2]; z <= c1[2]; z++) {
@@ -349,7 +289,7 @@ static void pooled_free(pooled_t *p)
 }
 
 /* mesh -> image */
-static i2m_err_t mesh_to_image(const tctx_t *tc, int64_t ntri, const grid_t *fg, const fctx_t *fc,
+static i2m_err_t mesh_to_image(const tctx_t *tc, int64_t ntri, const ck_grid_t *fg, const fctx_t *fc,
                                double h, const i2m_image_t *img, ck_fidelity_t *f, pooled_t *pool)
 {
   int64_t *off = NULL, *arg = NULL;
@@ -447,7 +387,7 @@ static void face_points(const i2m_image_t *img, const vface_t *f, double p[FACE_
 
 /* Image -> mesh: every face's nine samples go to the distribution (each weighing a ninth of
  * the face's area); its corners count for the maximum. */
-static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const grid_t *tg,
+static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const ck_grid_t *tg,
                                const tctx_t *tc, const i2m_image_t *img, ck_fidelity_t *f,
                                int64_t *worst, pooled_t *pool)
 {
@@ -688,7 +628,7 @@ out:
 }
 
 /* ---- driver ---- */
-static i2m_err_t build_face_grid(const i2m_image_t *img, const fctx_t *fc, int64_t nf, grid_t *g)
+static i2m_err_t build_face_grid(const i2m_image_t *img, const fctx_t *fc, int64_t nf, ck_grid_t *g)
 {
   /* cells of about two of the smallest voxel sizes, at least one voxel, at most 2^23 cells */
   double smin = fmin(img->spacing[0], fmin(img->spacing[1], img->spacing[2]));
@@ -704,10 +644,10 @@ static i2m_err_t build_face_grid(const i2m_image_t *img, const fctx_t *fc, int64
     }
     if (ncell <= (double)((int64_t)1 << 23)) break;
   }
-  return grid_build(g, nf, face_bbox, fc);
+  return ck_grid_build(g, nf, face_bbox, fc);
 }
 
-static i2m_err_t build_tri_grid(const tctx_t *tc, int64_t ntri, double min_h, grid_t *g)
+static i2m_err_t build_tri_grid(const tctx_t *tc, int64_t ntri, double min_h, ck_grid_t *g)
 {
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   double elen = 0;
@@ -731,7 +671,7 @@ static i2m_err_t build_tri_grid(const tctx_t *tc, int64_t ntri, double min_h, gr
     g->lo[k] = lo[k] - 1e-9 * h;
     g->n[k] = (int64_t)((hi[k] - lo[k]) / h) + 1;
   }
-  return grid_build(g, ntri, tri_bbox, tc);
+  return ck_grid_build(g, ntri, tri_bbox, tc);
 }
 
 /* The shortest run, in mm, of voxel c's label through c along one of the image axes (0 for a
@@ -776,7 +716,7 @@ i2m_err_t ck_fidelity(const ck_mesh_t *m, const ck_topo_t *topo, const i2m_image
   double *g = NULL;
   vface_t *faces = NULL;
   int64_t nf = 0, worst = -1;
-  grid_t fg = {0}, tg = {0};
+  ck_grid_t fg = {0}, tg = {0};
   i2m_components_t runs = {0};
   pooled_t pool = {{NULL, NULL}, {NULL, NULL}, {0, 0}};
   fctx_t fc = {img, NULL, NULL};
@@ -831,8 +771,8 @@ out:
   i2m_free(&g);
   i2m_free(&faces);
   i2m_free(&fc.box);
-  grid_free(&fg);
-  grid_free(&tg);
+  ck_grid_free(&fg);
+  ck_grid_free(&tg);
   i2m_components_free(&runs);
   pooled_free(&pool);
   return err;

@@ -1,7 +1,10 @@
 /* i2m-check: readers for the mesh files i2m writes (and simple variants of them).
  *   .vtu   VTK XML UnstructuredGrid: appended raw data with UInt32 or UInt64 headers,
  *          inline ascii or base64 DataArrays; no compression.  Tetrahedra (type 10) and
- *          cell data "material" (else the first cell array); other cells are skipped.
+ *          cell data "material" (else the first cell array); other cells are skipped; the
+ *          point data "GlobalNodeId" when present (the pieces of a distributed mesh).
+ *   .pvtu  the list of pieces (<Piece Source=...>) of a PUnstructuredGrid; the pieces are
+ *          read as .vtu and stitched by pvtu.c.
  *   .mesh  Medit ASCII: Vertices, Tetrahedra, Triangles, then End (required: a file cut
  *          between sections would otherwise read as a smaller mesh); the comments
  *          "# i2m interface N = labels A B" give each triangle ref its label pair.
@@ -29,6 +32,8 @@ void ck_mesh_free(ck_mesh_t *m)
   i2m_free(&m->tet_label);
   i2m_free(&m->tri);
   i2m_free(&m->tri_label);
+  i2m_free(&m->gid);
+  ck_stitch_free(&m->stitch);
   memset(m, 0, sizeof *m);
 }
 
@@ -336,7 +341,7 @@ out:
 
 /* ===================================== VTU ===================================== */
 
-enum { VTU_SEC_POINTS, VTU_SEC_CELLS, VTU_SEC_CELLDATA, VTU_SEC_OTHER };
+enum { VTU_SEC_POINTS, VTU_SEC_CELLS, VTU_SEC_CELLDATA, VTU_SEC_POINTDATA, VTU_SEC_OTHER };
 
 typedef struct {
   const char *tag, *tag_end; /* "<DataArray" and its closing '>' */
@@ -539,7 +544,7 @@ static i2m_err_t vtu_scan(vtu_t *x, const char *xml_end, vtu_da_t *das, int *nda
     }
     const char *pd = x->buf, *lastpd = NULL;
     while ((pd = find_str(pd, p, "<PointData")) != NULL) lastpd = pd++;
-    if (lastpd && best && lastpd > best) d->section = VTU_SEC_OTHER;
+    if (lastpd && (!best || lastpd > best)) d->section = VTU_SEC_POINTDATA;
     char buf[32];
     get_attr(p, d->tag_end, "type", d->type, sizeof d->type);
     get_attr(p, d->tag_end, "Name", d->name, sizeof d->name);
@@ -610,6 +615,21 @@ static i2m_err_t vtu_header(vtu_t *x, const char **xml_end, int64_t *np, int64_t
   return I2M_OK;
 }
 
+/* The point data "GlobalNodeId" (one integer per point), when the file has it. */
+static i2m_err_t vtu_global_ids(const vtu_t *x, const vtu_da_t *das, int nda, int64_t np,
+                                ck_mesh_t *m)
+{
+  const vtu_da_t *dg = vtu_find(das, nda, VTU_SEC_POINTDATA, "GlobalNodeId");
+  if (!dg) return I2M_OK;
+  I2M_CHECK(dg->ncomp == 1 && dg->type[0] != 'F', I2M_ERR_INPUT,
+            "%s: GlobalNodeId must be one integer per point (found %lld x %s)", x->path,
+            (long long)dg->ncomp, dg->type);
+  I2M_CALL(i2m_malloc((size_t)np, sizeof *m->gid, &m->gid));
+  I2M_CALL(vtu_array(x, dg, np, NULL, m->gid));
+  m->has_gid = 1;
+  return I2M_OK;
+}
+
 static i2m_err_t read_vtu(const char *buf, size_t len, const char *path, ck_mesh_t *m)
 {
   vtu_t x = {buf, buf + len, path, NULL, NULL, 4, 0};
@@ -633,6 +653,7 @@ static i2m_err_t read_vtu(const char *buf, size_t len, const char *path, ck_mesh
   m->nv = np;
   I2M_CALL(i2m_malloc((size_t)np * 3, sizeof(double), &m->xyz));
   I2M_CALL(vtu_array(&x, dp, 3 * np, m->xyz, NULL));
+  I2M_CALL(vtu_global_ids(&x, das, nda, np, m));
   I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nc, sizeof *offs, &offs));
   I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nc, sizeof *types, &types));
   I2M_CALL_GOTO(err, out, vtu_array(&x, doff, nc, NULL, offs));
@@ -987,6 +1008,76 @@ out:
   return err;
 }
 
+/* ===================================== PVTU ==================================== */
+
+/* Piece file name: Source relative to the .pvtu's directory (an absolute one as it is). */
+static i2m_err_t pvtu_piece_path(const char *pvtu, const char *src, char **out)
+{
+  const char *slash = strrchr(pvtu, '/');
+  size_t d = src[0] == '/' || !slash ? 0 : (size_t)(slash - pvtu + 1), n = strlen(src);
+  I2M_CALL(i2m_malloc(d + n + 1, 1, out));
+  memcpy(*out, pvtu, d);
+  memcpy(*out + d, src, n + 1);
+  return I2M_OK;
+}
+
+static int count_str(const char *p, const char *end, const char *s)
+{
+  int n = 0;
+  while ((p = find_str(p, end, s)) != NULL) {
+    n++;
+    p++;
+  }
+  return n;
+}
+
+/* The Source of every <Piece> tag of a PUnstructuredGrid file held in buf. */
+static i2m_err_t pvtu_scan(const char *path, const char *buf, size_t len, char ***pieces, int *n)
+{
+  const char *end = buf + len, *f = find_str(buf, end, "<VTKFile");
+  char type[32], src[4096];
+  I2M_CHECK(f, I2M_ERR_INPUT, "%s: not a VTK XML file (no <VTKFile>)", path);
+  const char *fe = memchr(f, '>', (size_t)(end - f));
+  I2M_CHECK(fe && get_attr(f, fe, "type", type, sizeof type), I2M_ERR_INPUT,
+            "%s: VTKFile tag without a type", path);
+  I2M_CHECK(strcmp(type, "PUnstructuredGrid") == 0, I2M_ERR_UNSUPPORTED,
+            "%s: VTK file type is %s, not PUnstructuredGrid", path, type);
+  I2M_CHECK(find_str(fe, end, "</VTKFile>"), I2M_ERR_INPUT,
+            "%s: truncated file (no </VTKFile>)", path);
+  int count = count_str(fe, end, "<Piece");
+  I2M_CHECK(count > 0, I2M_ERR_INPUT, "%s: no <Piece Source=...> in the file", path);
+  I2M_CALL(i2m_calloc((size_t)count, sizeof **pieces, pieces));
+  const char *p = fe;
+  for (*n = 0; *n < count; (*n)++) {
+    p = find_str(p, end, "<Piece");
+    const char *pe = memchr(p, '>', (size_t)(end - p));
+    I2M_CHECK(pe && get_attr(p, pe, "Source", src, sizeof src) && src[0], I2M_ERR_INPUT,
+              "%s: <Piece> number %d has no Source", path, *n);
+    I2M_CALL(pvtu_piece_path(path, src, &(*pieces)[*n]));
+    p = pe;
+  }
+  return I2M_OK;
+}
+
+i2m_err_t ck_pvtu_pieces(const char *path, char ***pieces, int *npieces)
+{
+  char *buf = NULL;
+  size_t len = 0;
+  *pieces = NULL;
+  *npieces = 0;
+  I2M_CALL(read_file(path, &buf, &len));
+  i2m_err_t err = pvtu_scan(path, buf, len, pieces, npieces);
+  i2m_free(&buf);
+  if (err != I2M_OK) ck_pvtu_pieces_free(pieces, *npieces);
+  return err;
+}
+
+void ck_pvtu_pieces_free(char ***pieces, int npieces)
+{
+  for (int i = 0; *pieces && i < npieces; i++) i2m_free(&(*pieces)[i]);
+  i2m_free(pieces);
+}
+
 /* ================================== dispatch =================================== */
 
 static int ends_with(const char *s, const char *suf)
@@ -1000,8 +1091,10 @@ i2m_err_t ck_mesh_read(const char *path, ck_mesh_t *m)
   char *buf = NULL;
   size_t len = 0;
   memset(m, 0, sizeof *m);
+  if (ends_with(path, ".pvtu")) return ck_pvtu_read(path, m);
   int fmt = ends_with(path, ".vtu") ? 1 : ends_with(path, ".mesh") ? 2 : ends_with(path, ".msh") ? 3 : 0;
-  I2M_CHECK(fmt, I2M_ERR_ARG, "%s: unknown mesh format (expected .vtu, .mesh or .msh)", path);
+  I2M_CHECK(fmt, I2M_ERR_ARG, "%s: unknown mesh format (expected .vtu, .pvtu, .mesh or .msh)",
+            path);
   I2M_CALL(read_file(path, &buf, &len));
   m->path = path;
   rd_t r = {buf, buf + len, path, 0};

@@ -1,7 +1,7 @@
 /* i2m-check: the reports.  A human-readable summary, or one JSON object with every figure:
- *   { "mesh": {...}, "valid": bool, "validity": {...}, "quality": {...} | null,
- *     "fidelity": {...} | null, "thresholds": {...}, "passed": bool, "violations": [...],
- *     "timings": {...} }
+ *   { "mesh": {...}, "stitch": {...} | null (a .pvtu), "valid": bool, "validity": {...},
+ *     "quality": {...} | null, "fidelity": {...} | null, "thresholds": {...}, "passed": bool,
+ *     "violations": [...], "timings": {...} }
  * Non-finite numbers are written as null. */
 #include "check.h"
 
@@ -185,6 +185,58 @@ static void json_fidelity(FILE *f, const ck_fidelity_t *x)
   fprintf(f, "]}");
 }
 
+/* The stitching errors of a .pvtu: a count, a description and the first one of each kind. */
+typedef struct {
+  int64_t count;
+  const char *what, *first;
+} stitch_error_t;
+
+static int stitch_errors(const ck_stitch_t *st, stitch_error_t e[4])
+{
+  const stitch_error_t all[4] = {
+      {st->coordinate_mismatches, "global ids with different coordinates in two pieces",
+       st->first_mismatch},
+      {st->shared_points, "points with two global ids", st->first_shared},
+      {st->pieces_without_ids, "pieces without GlobalNodeId", st->first_without_ids},
+      {st->one_sided_faces, "faces seen by one side only", st->first_one_sided}};
+  int n = 0;
+  for (int i = 0; i < 4; i++)
+    if (all[i].count) e[n++] = all[i];
+  return n;
+}
+
+static void json_stitch(FILE *f, const ck_stitch_t *st, const ck_mesh_t *m)
+{
+  stitch_error_t e[4];
+  int ne = stitch_errors(st, e);
+  fprintf(f, "\"stitch\": {\"pieces\": [");
+  for (int p = 0; p < st->npieces; p++) {
+    fprintf(f, "%s{\"path\": ", p ? ", " : "");
+    jstr(f, st->piece_path[p]);
+    fprintf(f, ", ");
+    JI(f, "vertices", st->piece_nv[p], 0);
+    JI(f, "tetrahedra", st->tet_start[p + 1] - st->tet_start[p], 0);
+    JB(f, "global_ids", st->piece_has_gid[p], 1);
+    fprintf(f, "}");
+  }
+  fprintf(f, "], ");
+  JI(f, "vertices_before", st->vertices_before, 0);
+  JI(f, "vertices_after", m->nv, 0);
+  JI(f, "seam_vertices", st->seam_vertices, 0);
+  JI(f, "coordinate_mismatches", st->coordinate_mismatches, 0);
+  JI(f, "shared_points", st->shared_points, 0);
+  JI(f, "pieces_without_ids", st->pieces_without_ids, 0);
+  JB(f, "seams_checked", st->seams_checked, 0);
+  JI(f, "seam_boundary_faces", st->seam_boundary_faces, 0);
+  JI(f, "one_sided_faces", st->one_sided_faces, 0);
+  fprintf(f, "\"errors\": [");
+  for (int i = 0; i < ne; i++) {
+    fprintf(f, "%s", i ? ", " : "");
+    jstr(f, e[i].first);
+  }
+  fprintf(f, "]}");
+}
+
 void ck_report_json(FILE *f, const ck_result_t *r)
 {
   const ck_mesh_t *m = r->mesh;
@@ -196,7 +248,12 @@ void ck_report_json(FILE *f, const ck_result_t *r)
   JI(f, "file_triangles", m->ntri, 0);
   JB(f, "file_has_triangles", m->has_tri, 0);
   JI(f, "ignored_cells", m->ignored_cells, 1);
-  fprintf(f, "}, \"image\": ");
+  fprintf(f, "}, ");
+  if (m->stitch)
+    json_stitch(f, m->stitch, m);
+  else
+    fprintf(f, "\"stitch\": null");
+  fprintf(f, ", \"image\": ");
   if (r->image_path)
     jstr(f, r->image_path);
   else
@@ -337,12 +394,32 @@ static void text_fidelity(FILE *f, const ck_fidelity_t *x)
   }
 }
 
+static void text_stitch(FILE *f, const ck_stitch_t *st, const ck_mesh_t *m)
+{
+  for (int p = 0; p < st->npieces; p++)
+    fprintf(f, "  piece %d: %s: %lld vertices, %lld tets%s\n", p, st->piece_path[p],
+            (long long)st->piece_nv[p], (long long)(st->tet_start[p + 1] - st->tet_start[p]),
+            st->piece_has_gid[p] ? "" : ", no GlobalNodeId");
+  fprintf(f, "stitch: %d pieces, %lld vertices before merging, %lld after, %lld seam vertices "
+             "(global ids in 2+ pieces)", st->npieces, (long long)st->vertices_before,
+          (long long)m->nv, (long long)st->seam_vertices);
+  if (st->seams_checked)
+    fprintf(f, "; %lld boundary faces on seams, %lld seen by one side only",
+            (long long)st->seam_boundary_faces, (long long)st->one_sided_faces);
+  fprintf(f, "\n");
+  stitch_error_t e[4];
+  int ne = stitch_errors(st, e);
+  for (int i = 0; i < ne; i++)
+    fprintf(f, "STITCH ERROR: %s: %lld; first: %s\n", e[i].what, (long long)e[i].count, e[i].first);
+}
+
 void ck_report_text(FILE *f, const ck_result_t *r)
 {
   const ck_mesh_t *m = r->mesh;
   fprintf(f, "mesh %s (%s): %lld vertices, %lld tetrahedra, %lld file triangles%s\n", r->mesh_path,
           m->format, (long long)m->nv, (long long)m->nt, (long long)m->ntri,
           m->ignored_cells ? " (other cells ignored)" : "");
+  if (m->stitch) text_stitch(f, m->stitch, m);
   text_validity(f, &r->validity);
   if (r->have_quality) text_quality(f, &r->quality);
   if (r->have_fidelity) text_fidelity(f, &r->fidelity);

@@ -51,9 +51,10 @@ static void sort_n(void *a, int64_t n, size_t size, int (*cmp)(const void *, con
   if (n > 0) qsort(a, (size_t)n, size, cmp);
 }
 
-static void add_error(ck_validity_t *v, const char *name)
+void ck_validity_add_error(ck_validity_t *v, const char *name)
 {
   size_t n = strlen(v->errors);
+  v->valid = 0;
   if (n + strlen(name) + 2 >= sizeof v->errors) return;
   snprintf(v->errors + n, sizeof v->errors - n, "%s%s", n ? "," : "", name);
 }
@@ -359,10 +360,10 @@ i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo)
     if (!isfinite(m->xyz[3 * i]) || !isfinite(m->xyz[3 * i + 1]) || !isfinite(m->xyz[3 * i + 2]))
       if (v->nonfinite++ == 0) v->first_nonfinite = i;
   v->file_triangles = m->ntri;
-  if (m->nt == 0) add_error(v, "no_tetrahedra");
-  if (v->bad_index) add_error(v, "index_out_of_range");
-  if (v->tri_bad_index) add_error(v, "file_triangle_index_out_of_range");
-  if (v->nonfinite) add_error(v, "nonfinite_vertex");
+  if (m->nt == 0) ck_validity_add_error(v, "no_tetrahedra");
+  if (v->bad_index) ck_validity_add_error(v, "index_out_of_range");
+  if (v->tri_bad_index) ck_validity_add_error(v, "file_triangle_index_out_of_range");
+  if (v->nonfinite) ck_validity_add_error(v, "nonfinite_vertex");
   if (v->bad_index || v->nonfinite) { /* nothing else can be computed safely */
     v->valid = 0;
     return I2M_OK;
@@ -377,18 +378,18 @@ i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo)
   v->interface_triangles = topo->iface.n;
   I2M_CALL_GOTO(err, out, count_pairs(&topo->iface, &v->interface_pairs));
   if (m->has_tri && !v->tri_bad_index) I2M_CALL_GOTO(err, out, compare_file(m, topo, v));
-  if (v->inverted) add_error(v, "inverted");
-  if (v->degenerate) add_error(v, "degenerate");
-  if (v->nonmanifold_faces) add_error(v, "nonmanifold_face");
-  if (v->overlapping_faces) add_error(v, "overlapping");
-  if (v->dangling) add_error(v, "dangling_vertex");
-  if (v->duplicate) add_error(v, "duplicate_vertex");
-  if (v->boundary_open_edges) add_error(v, "open_boundary");
-  if (v->file_not_interface) add_error(v, "file_triangle_not_interface");
-  if (v->interface_not_in_file) add_error(v, "interface_missing_from_file");
-  if (v->file_label_mismatch) add_error(v, "interface_label_mismatch");
-  if (v->file_duplicate) add_error(v, "duplicate_file_triangle");
-  if (v->file_flipped) add_error(v, "flipped_file_triangle");
+  if (v->inverted) ck_validity_add_error(v, "inverted");
+  if (v->degenerate) ck_validity_add_error(v, "degenerate");
+  if (v->nonmanifold_faces) ck_validity_add_error(v, "nonmanifold_face");
+  if (v->overlapping_faces) ck_validity_add_error(v, "overlapping");
+  if (v->dangling) ck_validity_add_error(v, "dangling_vertex");
+  if (v->duplicate) ck_validity_add_error(v, "duplicate_vertex");
+  if (v->boundary_open_edges) ck_validity_add_error(v, "open_boundary");
+  if (v->file_not_interface) ck_validity_add_error(v, "file_triangle_not_interface");
+  if (v->interface_not_in_file) ck_validity_add_error(v, "interface_missing_from_file");
+  if (v->file_label_mismatch) ck_validity_add_error(v, "interface_label_mismatch");
+  if (v->file_duplicate) ck_validity_add_error(v, "duplicate_file_triangle");
+  if (v->file_flipped) ck_validity_add_error(v, "flipped_file_triangle");
 out:
   v->valid = v->errors[0] == '\0';
   i2m_free(&sgn);

@@ -89,7 +89,7 @@ DEPS_STAMP := build/.deps-ok
 
 # ---- build rules --------------------------------------------------------------------------
 .SECONDARY:
-.PHONY: all lib programs unit-tests check check-unit check-scripts check-layers check-tsan check-full bench demo deps clean
+.PHONY: all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full bench demo deps clean
 
 all: $(PROGRAMS) $(LIB)
 lib: $(LIB)
@@ -139,7 +139,29 @@ $(BUILD)/bench/%: $(BUILD)/bench/%.o $(LIB)
 	@$(if $(Q),echo "  LD      $@")
 	$(Q)$(CC) $(ALL_CFLAGS) $(SANFLAGS) -o $@ $^ $(LDFLAGS) $(LDLIBS)
 
-unit-tests: $(UNIT_BIN)
+# MPI test tools (tests/mpi/, only with MPI): the PMPI wrapper that checks MPI_THREAD_FUNNELED,
+# preloaded into bin/i2m by tests/scripts/test_mpi_funneled.sh, and a program that breaks
+# FUNNELED on purpose.  Built without the sanitizers: a preloaded library must not need a
+# runtime that the program loads after it.
+MPI_TOOLS :=
+ifeq ($(HAVE_MPI),1)
+  MPI_TOOLS := $(BUILD)/tests/pmpi_funneled.so $(BUILD)/tests/funneled_bad
+endif
+MPI_TOOL_FLAGS = -std=c11 $(WARNFLAGS) -O2 -g -pthread $(CFLAGS)
+
+$(BUILD)/tests/pmpi_funneled.so: tests/mpi/pmpi_funneled.c | $(DEPS_STAMP)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) $(CPPFLAGS) $(MPI_TOOL_FLAGS) -fPIC -shared -o $@ $<
+
+$(BUILD)/tests/funneled_bad: tests/mpi/funneled_bad.c | $(DEPS_STAMP)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) $(CPPFLAGS) $(MPI_TOOL_FLAGS) -o $@ $<
+
+mpi-tools: $(MPI_TOOLS)
+
+unit-tests: $(UNIT_BIN) $(MPI_TOOLS)
 
 # ---- tests --------------------------------------------------------------------------------
 # check: release build and unit tests, the same unit tests under ASan+UBSan, the script
@@ -161,7 +183,7 @@ BUILD_TSAN_TESTS := build/tsan/tests/test_threads_refine
 check-unit: $(UNIT_BIN)
 	$(Q)sh tests/run_unit.sh $(BUILD)/tests $(CONFIG)
 
-check-scripts: all
+check-scripts: all $(MPI_TOOLS)
 	$(Q)sh tests/run_scripts.sh
 
 check-layers:

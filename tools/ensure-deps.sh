@@ -10,6 +10,7 @@ command -v cc >/dev/null 2>&1 || need gcc
 command -v make >/dev/null 2>&1 || need make
 command -v mpicc >/dev/null 2>&1 || need "libopenmpi-dev"
 command -v mpirun >/dev/null 2>&1 || need "openmpi-bin"
+command -v pgrep >/dev/null 2>&1 || need procps # (tests/scripts/test_mpi_errors.sh finds the ranks to kill)
 have_header zlib.h || need zlib1g-dev
 have_header hwloc.h || need libhwloc-dev
 have_header CUnit/CUnit.h || need libcunit1-dev

@@ -8,19 +8,63 @@
 #   make demo            meshes the knee atlas shipped in run/data end to end
 #   make DEBUG=1 | SANITIZE=address,undefined | SANITIZE=thread    other configurations
 #   make V=1             show the commands
+#   make MPI=mpich | CC=clang | CC=cc HAVE_MPI=0    other toolchains (see below)
 #
 # Objects go to build/<config>/.  Release binaries and the library go to bin/ and lib/;
-# other configurations keep theirs under build/<config>/.
+# other configurations and toolchains keep theirs under build/<config>[-<tag>]/.
 
 .DEFAULT_GOAL := all
 SHELL := /bin/sh
 
 # ---- toolchain ----------------------------------------------------------------------------
-MPICC_PATH := $(shell command -v mpicc 2>/dev/null)
-ifeq ($(origin CC),default)
-  CC := $(if $(MPICC_PATH),mpicc,cc)
+# CC defaults to the MPI compiler wrapper MPICC: mpicc, or with MPI=mpich Debian's
+# mpicc.mpich (MPI=openmpi: mpicc.openmpi; MPI=none or HAVE_MPI=0: no MPI, CC=cc).  With
+# another compiler (make CC=clang) MPI's -I/-L/-l flags come from `$(MPICC) -show`, which
+# Open MPI's and MPICH's wrappers both answer.  A toolchain other than the default one builds
+# in build/<config>-<tag>/ with its bin/ and lib/ there (e.g. build/release-mpich/bin/i2m,
+# build/release-clang/bin/i2m, build/release-cc-nompi/bin/i2m), so that none clobbers bin/.
+mpi_flavour = $(if $(1),$(if $(findstring Open MPI,$(shell $(1) --showme:version 2>&1)),openmpi,$(if \
+  $(findstring MPICH,$(shell $(1) -v </dev/null 2>/dev/null | head -n 1)),mpich,mpi)),nompi)
+DEFAULT_MPICC := $(if $(shell command -v mpicc 2>/dev/null),mpicc)
+ifeq ($(MPI),mpich)
+  MPICC ?= mpicc.mpich
+else ifeq ($(MPI),openmpi)
+  MPICC ?= mpicc.openmpi
+else ifeq ($(MPI),none)
+  HAVE_MPI := 0
 endif
-HAVE_MPI ?= $(if $(MPICC_PATH),1,0)
+# (make CC=mpicc.mpich: CC is the wrapper)
+ifneq ($(origin CC),default)
+  ifneq ($(filter mpi%,$(notdir $(firstword $(CC)))),)
+    MPICC := $(CC)
+  endif
+endif
+MPICC    ?= $(DEFAULT_MPICC)
+HAVE_MPI ?= $(if $(MPICC),1,0)
+ifeq ($(origin CC),default)
+  CC := $(if $(filter 1,$(HAVE_MPI)),$(MPICC),cc)
+endif
+ifeq ($(HAVE_MPI),1)
+  ifeq ($(shell command -v $(firstword $(MPICC) none) 2>/dev/null),)
+    $(error HAVE_MPI=1 but no MPI compiler wrapper '$(MPICC)': install one (libopenmpi-dev, libmpich-dev), set MPICC=, or build with HAVE_MPI=0)
+  endif
+  # a plain compiler: MPI's flags from the wrapper
+  ifneq ($(CC),$(MPICC))
+    MPI_SHOW := $(shell $(MPICC) -show 2>/dev/null)
+    CPPFLAGS += $(filter -I% -D%,$(MPI_SHOW))
+    LDFLAGS  += $(filter -L% -Wl% -pthread,$(MPI_SHOW))
+    LDLIBS   += $(filter -l%,$(MPI_SHOW))
+  endif
+endif
+# the build tag: what differs from the default toolchain (compiler, MPI flavour)
+CC_ID      := $(if $(filter $(MPICC),$(CC)),wrapper,$(notdir $(firstword $(CC))))
+MPI_ID     := $(call mpi_flavour,$(if $(filter 1,$(HAVE_MPI)),$(MPICC)))
+DEF_CC_ID  := $(if $(DEFAULT_MPICC),wrapper,cc)
+DEF_MPI_ID := $(call mpi_flavour,$(DEFAULT_MPICC))
+empty :=
+space := $(empty) $(empty)
+TAG := $(subst $(space),-,$(strip $(if $(filter-out $(DEF_CC_ID),$(CC_ID)),$(CC_ID)) \
+  $(if $(filter-out $(DEF_MPI_ID),$(MPI_ID)),$(MPI_ID))))
 OMPFLAGS ?= -fopenmp
 FPFLAGS  ?= -ffp-contract=off
 PYTHON   ?= /usr/bin/python3
@@ -42,8 +86,8 @@ else
   OPTFLAGS ?= -O3 -g
 endif
 
-BUILD := build/$(CONFIG)
-ifeq ($(CONFIG),release)
+BUILD := build/$(CONFIG)$(if $(TAG),-$(TAG))
+ifeq ($(CONFIG)$(TAG),release)
   BINDIR := bin
   LIBDIR := lib
 else
@@ -214,5 +258,9 @@ deps:
 
 clean:
 	rm -rf build bin lib
+
+# make print-BINDIR, print-CC ...: a variable's value (for scripts)
+print-%:
+	@echo '$($*)'
 
 -include $(wildcard $(BUILD)/src/*/*.d $(BUILD)/tools/*.d $(BUILD)/tools/check/*.d $(BUILD)/tests/unit/*.d $(BUILD)/bench/*.d)

@@ -122,7 +122,7 @@ static inline double i2m_det3_rows(const double x[3], const double y[3], const d
 static inline double i2m_orient3d_rows_bound(double mx, double my, double mz)
 {
   const double perm = 7.0 * mx * my * mz;
-  return (perm >= I2M_O3D_PERM_MIN) & (mz <= I2M_O3D_ZMAX_MAX) ? I2M_O3D_BOUND * perm : (double)INFINITY;
+  return ((perm >= I2M_O3D_PERM_MIN) & (mz <= I2M_O3D_ZMAX_MAX)) ? I2M_O3D_BOUND * perm : (double)INFINITY;
 }
 
 static inline double i2m_pred_max4_(double a, double b, double c, double d)
@@ -163,7 +163,7 @@ static inline double i2m_insphere_rows_bound(double mx, double my, double mz)
 {
   const double L = mx * mx + my * my + mz * mz;
   const double perm = 25.0 * L * mx * my * mz;
-  return (perm >= I2M_ISP_PERM_MIN) & (L <= 0.25 * I2M_ISP_LIFT_MAX) ? I2M_ISP_BOUND * perm : (double)INFINITY;
+  return ((perm >= I2M_ISP_PERM_MIN) & (L <= 0.25 * I2M_ISP_LIFT_MAX)) ? I2M_ISP_BOUND * perm : (double)INFINITY;
 }
 
 /** Filter of insphere on translated, lifted rows (see i2m_insphere_det_rows): the sign

@@ -2,9 +2,11 @@
 #
 #   make                 bin/i2m, bin/i2m-info, bin/i2m-check, lib/libi2m.a (release)
 #   make check           every test: unit tests (release, then ASan+UBSan), tool and script
-#                        tests, threaded tests under ThreadSanitizer; installs missing Debian
-#                        packages first when run as root
+#                        tests, threaded tests under ThreadSanitizer, check-builds; installs
+#                        missing Debian packages first when run as root
+#   make check-builds    builds with MPICH, clang, cc without MPI (those installed); meshes with each
 #   make bench           benchmarks; figures printed and written to bench/results/*.json
+#   make bench-mpi       ranks x threads sweep on the knee atlas (bench/bench_mpi.sh; Table 2, Fig. 7)
 #   make demo            meshes the knee atlas shipped in run/data end to end
 #   make DEBUG=1 | SANITIZE=address,undefined | SANITIZE=thread    other configurations
 #   make V=1             show the commands
@@ -133,7 +135,7 @@ DEPS_STAMP := build/.deps-ok
 
 # ---- build rules --------------------------------------------------------------------------
 .SECONDARY:
-.PHONY: all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full bench demo deps clean
+.PHONY: all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full check-builds bench bench-mpi demo deps clean
 
 all: $(PROGRAMS) $(LIB)
 lib: $(LIB)
@@ -219,6 +221,7 @@ check: $(DEPS_STAMP)
 	$(Q)$(MAKE) --no-print-directory WERROR=1 check-scripts
 	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=thread all $(BUILD_TSAN_TESTS)
 	$(Q)sh tests/run_tsan.sh
+	$(Q)sh tests/builds.sh
 	@echo "make check: all tests passed"
 
 # the threaded code under ThreadSanitizer (tests/run_tsan.sh runs these)
@@ -242,6 +245,11 @@ check-full: all
 	$(Q)I2M_IMAGES="$(ALL_IMAGES)" I2M_DATA="$${I2M_DATA:-../shared/data}" I2M_BIN=bin PYTHON=$(PYTHON) \
 	  I2M_TMP=$$(mktemp -d) sh tests/scripts/test_deterministic.sh
 
+# the other toolchains that are installed (MPICH, clang, cc without MPI), each in its own
+# build directory, each meshing a small image (tests/builds.sh; about a minute from scratch)
+check-builds: $(DEPS_STAMP)
+	$(Q)sh tests/builds.sh
+
 check-tsan:
 	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=thread all $(BUILD_TSAN_TESTS)
 	$(Q)sh tests/run_tsan.sh
@@ -249,6 +257,12 @@ check-tsan:
 # ---- benchmarks and demo --------------------------------------------------------------------
 bench: all $(BENCH_SRC:bench/%.c=$(BUILD)/bench/%)
 	$(Q)sh bench/run.sh $(BUILD)/bench
+
+# the MPI sweep (I2M_BENCH_REPEATS, I2M_BENCH_CONFIGS, I2M_BENCH_IMAGE, I2M_BENCH_OPTS: see the script)
+# (the launcher that goes with the wrapper: mpicc.mpich -> mpirun.mpich)
+MPIRUN ?= $(patsubst mpicc%,mpirun%,$(notdir $(firstword $(MPICC))))
+bench-mpi: all
+	$(Q)I2M="$(CURDIR)/$(BINDIR)/i2m" MPIRUN="$(MPIRUN)" sh bench/bench_mpi.sh
 
 demo: all
 	$(Q)sh run/demo.sh

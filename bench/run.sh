@@ -10,8 +10,9 @@ echo "== predicates"
 [ -x "$bdir/bench_predicates" ] && "$bdir/bench_predicates" | tail -n 12 || true
 for s in bench/bench_*.sh; do
   [ -f "$s" ] || continue
+  [ "$s" = bench/bench_mpi.sh ] && continue # (make bench-mpi: the ranks x threads sweep: minutes)
   echo "== $(basename "$s")"
   sh "$s"
 done
-echo "figures written to bench/results/"
+echo "figures written to bench/results/ (make bench-mpi: the MPI sweep over ranks x threads)"
 ls bench/results

@@ -110,6 +110,17 @@ static i2m_err_t parse_region(const char *s, cli_options_t *o, int *n)
   return I2M_OK;
 }
 
+/* The options that take a value (parse_valued reads each). */
+static bool takes_value(const char *opt)
+{
+  static const char *const names[] = {"-o", "--output", "--report", "--trace", "--delta", "--ratio", "--facet-angle",
+                                      "--size", "--size-label", "--region", "--seed", "--coarse-factor",
+                                      "--sliver-angle", "--depth", "--threads"};
+  for (size_t k = 0; k < sizeof names / sizeof *names; k++)
+    if (!strcmp(opt, names[k])) return true;
+  return false;
+}
+
 /* Options that take a value. */
 static i2m_err_t parse_valued(const char *opt, const char *val, cli_options_t *o, int *nls, int *nrg)
 {
@@ -166,6 +177,7 @@ i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o)
     else if (!strcmp(a, "--no-pin")) o->no_pin = 1;
     else if (!strcmp(a, "--deterministic")) o->deterministic = 1;
     else if (a[0] == '-' && a[1] != '\0') {
+      I2M_CHECK(takes_value(a), I2M_ERR_ARG, "unknown option '%s' (see i2m --help)", a);
       I2M_CHECK(i + 1 < argc, I2M_ERR_ARG, "option %s needs a value (see i2m --help)", a);
       I2M_CALL(parse_valued(a, argv[i + 1], o, &nls, &nrg));
       i++;

@@ -87,7 +87,8 @@ i2m_err_t i2m_par_agree(const i2m_par_t *par, i2m_err_t err)
   MPI_Bcast(&code, 1, MPI_INT, first, par->comm);
   MPI_Bcast(msg, (int)sizeof msg, MPI_CHAR, first, par->comm);
   msg[sizeof msg - 1] = '\0';
-  if (par->size > 1) return i2m_error_set((i2m_err_t)code, __FILE__, __LINE__, "[rank %d] %s", first, msg);
+  if (par->size > 1 && strncmp(msg, "[rank ", 6) != 0) /* (an error agreed on already keeps its prefix) */
+    return i2m_error_set((i2m_err_t)code, __FILE__, __LINE__, "[rank %d] %s", first, msg);
   return i2m_error_set((i2m_err_t)code, __FILE__, __LINE__, "%s", msg);
 }
 

@@ -74,12 +74,24 @@ void sched_partition(sched_t *S)
     total += S->tets[c] + 1;
   }
   qsort(order, S->ncells, sizeof *order, cmp_u64);
+  /* share q begins where the tets before reach q/P of the whole (a cell goes to the share its
+   * middle falls in), but every share gets one cell at least when there are enough */
   int64_t acc = 0;
+  uint32_t begin = 0; /* the first cell of the current share */
+  int q = 0;
   for (uint32_t i = 0; i < S->ncells; i++) {
     const uint32_t c = (uint32_t)order[i];
-    int q = (int)((acc + (S->tets[c] + 1) / 2) * S->nranks / total); /* (its middle decides) */
-    S->home[c] = q < S->nranks ? q : S->nranks - 1;
-    acc += S->tets[c] + 1;
+    const int64_t w = S->tets[c] + 1;
+    int want = (int)((acc + w / 2) * S->nranks / total);
+    const uint32_t left = S->ncells - i; /* cells from this one on */
+    /* the next share begins here if the tets say so, or if no more cells than empty shares are
+     * left; never skipping one, never before the current one has a cell */
+    if (i > begin && q < S->nranks - 1 && (want > q || (int)left <= S->nranks - 1 - q)) {
+      q++;
+      begin = i;
+    }
+    S->home[c] = q;
+    acc += w;
   }
   i2m_free(&order);
 }
@@ -137,14 +149,15 @@ static int64_t to_move(const sched_t *S, int rank, sched_task_t t)
   return m;
 }
 
-/* The tets each rank holds, and in all (the last figures fed back). */
+/* The tets a rank holds, and in all (the last figures fed back; a cell weighs one more, as
+ * in to_move). */
 static int64_t held_tets(const sched_t *S, int rank, int64_t *total)
 {
   int64_t mine = 0;
   *total = 0;
   for (uint32_t c = 0; c < S->ncells; c++) {
-    *total += S->tets[c];
-    if (S->holder[c] == rank) mine += S->tets[c];
+    *total += S->tets[c] + 1;
+    if (S->holder[c] == rank) mine += S->tets[c] + 1;
   }
   return mine;
 }

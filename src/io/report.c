@@ -179,12 +179,15 @@ static void json_quality(FILE *f, const i2m_report_t *r)
 }
 
 /* The distributed run: totals and every rank's figures (the paper's Fig. 7 breakdown). */
-static void json_dist(FILE *f, const i2m_dist_report_t *d)
+static void json_dist(FILE *f, const i2m_report_t *r)
 {
+  const i2m_dist_report_t *d = r->dist;
   fprintf(f, "  \"dist\": {\"ranks\": %d, \"depth\": %d, \"subregions\": %d, \"deterministic\": %s, \"tasks\": %lld, "
-             "\"wide_tasks\": %lld, \"submeshes_moved\": %lld, \"bytes_moved\": %lld, \"fine_seconds\": %.4f, \"per_rank\": [",
+             "\"wide_tasks\": %lld, \"submeshes_moved\": %lld, \"bytes\": %lld, \"bytes_per_tet\": %.2f, \"fine_seconds\": %.4f, "
+             "\"per_rank\": [",
           d->ranks, d->depth, 1 << (3 * d->depth), d->deterministic ? "true" : "false", (long long)d->tasks,
-          (long long)d->wide_tasks, (long long)d->tiles_moved, (long long)d->bytes, d->fine_seconds);
+          (long long)d->wide_tasks, (long long)d->tiles_moved, (long long)d->bytes, r->nt ? (double)d->bytes / (double)r->nt : 0.0,
+          d->fine_seconds);
   for (int k = 0; k < d->ranks; k++) {
     const i2m_rank_figures_t *g = &d->rank[k];
     fprintf(f, "%s\n    {\"rank\": %d, \"preprocess_seconds\": %.4f, \"meshing_seconds\": %.4f, \"comm_seconds\": %.4f, "
@@ -261,7 +264,7 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
     }
     fprintf(f, "]},\n");
   }
-  if (r->dist) json_dist(f, r->dist);
+  if (r->dist) json_dist(f, r);
   if (r->quality) json_quality(f, r);
   fprintf(f, "  \"version\": \"i2m 0.1\"\n}\n");
   int bad = ferror(f);

@@ -420,6 +420,7 @@ static void *bytes_room(bytes_t *B, size_t k)
 
 static void bytes_put(bytes_t *B, const void *x, size_t k)
 {
+  if (k == 0) return; /* (x may be NULL then) */
   void *p = bytes_room(B, k);
   if (p) memcpy(p, x, k);
 }

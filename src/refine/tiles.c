@@ -901,7 +901,9 @@ i2m_err_t i2m_refine_tiling_check_stuck(i2m_refine_t *r)
   int64_t n = 0;
   for (size_t i = 0; g && i < g->nstuck; i++) {
     const handoff_t *h = &g->stuck[i];
-    if (h->level < 0) n += r->dt->vkind[h->pv.v] == I2M_VK_FREE && i2m_dt_gid(r->dt, h->pv.v) == h->pv.gid;
+    if (h->level < 0) /* (a removal whose vertex is not on this rank: PACK_NONE) */
+      n += h->pv.v < i2m_dt_nverts_slots(r->dt) && r->dt->vkind[h->pv.v] == I2M_VK_FREE &&
+           i2m_dt_gid(r->dt, h->pv.v) == h->pv.gid;
     else n += i2m_dt_meta(r->dt, h->t) == h->meta && stuck_matters(r, h->t);
   }
   I2M_CHECK(!g || g->stuck_points == 0, I2M_ERR_INTERNAL,

@@ -56,7 +56,7 @@ final = sum(g["tets"] for g in ranks_seen)
 peak = max(g["peak_tets"] for g in ranks_seen)
 print("   tets %d, p99 %.4f mm, insertions %d (one process %d), peak held %.0f%% of %d, answered while refining %d, bytes/tet %.0f" % (
     run["mesh"]["tetrahedra"], run["fidelity"]["hausdorff"]["p99_mm"], ins, rref["refinement"]["insertions"],
-    100.0 * peak / final, final, sum(g["answered_while_refining"] for g in ranks_seen), d["bytes_moved"] / max(1, run["mesh"]["tetrahedra"])))
+    100.0 * peak / final, final, sum(g["answered_while_refining"] for g in ranks_seen), d["bytes_per_tet"]))
 spec = json.load(open(sys.argv[7]))["refinement"]["insertions"]
 print("   (the default one-process run: %d insertions, %+.1f%%)" % (spec, 100.0 * (ins - spec) / spec))
 if sys.argv[6] == "peak" and ranks == 2 and peak > 0.75 * final:
@@ -80,7 +80,7 @@ run_image() {
   for np in 1 2 4; do
     for t in 1 2; do
       out="$TMP/m.vtu"
-      [ $((np * t % 4)) = 0 ] && [ -n "${I2M_TEST_PVTU:-}" ] && out="$TMP/m.pvtu" # (some runs write pieces)
+      [ $((np * t % 4)) = 0 ] && out="$TMP/m.pvtu" # (some runs write pieces)
       rm -f "$TMP"/m*.vtu "$TMP"/m.pvtu
       # shellcheck disable=SC2086
       if ! timeout 300 $MPIRUN -np $np "$BIN/i2m" "$img" -o "$out" --threads $t $opts --quiet --report "$TMP/rep.json" \

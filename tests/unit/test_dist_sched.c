@@ -403,18 +403,36 @@ static bool check_apart(sim_t *m)
   return true;
 }
 
+/* May `rank` fetch what task t needs (the bound on what a rank holds, SCHED_HOLD_SHARE times its
+ * share, unless nothing is in flight and every other rank waits)? */
+static bool model_may_fetch(const sim_t *m, const int32_t *holder, int rank, sched_task_t t)
+{
+  const int64_t f = fetch_cost(m, holder, rank, t);
+  if (f == 0 || m->P == 1) return true;
+  bool stalled = m->nfl == 0;
+  for (int q = 0; q < m->P; q++) stalled &= q == rank || m->S.waiting[q] || m->S.done[q];
+  if (stalled) return true;
+  int64_t held = 0, total = 0;
+  for (uint32_t c = 0; c < m->S.ncells; c++) {
+    total += m->S.tets[c] + 1;
+    if (holder[c] == rank) held += m->S.tets[c] + 1;
+  }
+  return held + f <= (int64_t)((double)total * SCHED_HOLD_SHARE / m->P);
+}
+
 /* What sched_pick gave `rank`, against the model and the Location before (saved). */
 static bool check_pick(sim_t *m, int rank, uint32_t max, const sched_task_t *t, uint32_t n, const int32_t *saved)
 {
   bool runnable_normal = false, runnable_wide = false;
   int64_t cheapest = INT64_MAX;
   for (uint32_t c = 0; c < m->S.ncells; c++) { /* (the model still has none of these tasks in flight) */
-    if (model_runnable(m, (sched_task_t){c, false})) {
+    const sched_task_t tn = {c, false}, tw = {c, true};
+    if (model_runnable(m, tn) && model_may_fetch(m, saved, rank, tn)) {
       runnable_normal = true;
-      const int64_t f = fetch_cost(m, saved, rank, (sched_task_t){c, false});
+      const int64_t f = fetch_cost(m, saved, rank, tn);
       cheapest = f < cheapest ? f : cheapest;
     }
-    runnable_wide |= model_runnable(m, (sched_task_t){c, true});
+    runnable_wide |= model_runnable(m, tw) && model_may_fetch(m, saved, rank, tw);
   }
   EXPECT(m, n <= max, "%u tasks for a request of at most %u", n, max);
   EXPECT(m, n > 0 || (!runnable_normal && !runnable_wide), "rank %d got nothing though a task could run", rank);
@@ -424,6 +442,7 @@ static bool check_pick(sim_t *m, int rank, uint32_t max, const sched_task_t *t, 
            t[k].cell, t[k].wide ? " (wide)" : "");
     EXPECT(m, !t[k].wide || n == 1, "a wide task in a batch of %u", n);
     EXPECT(m, !t[k].wide || !runnable_normal, "a wide task while a normal one could run");
+    EXPECT(m, model_may_fetch(m, saved, rank, t[k]), "rank %d fetches more than the bound on what it holds", rank);
     EXPECT(m, model_runnable(m, t[k]), "cell %u: its block overlaps a task in flight", t[k].cell);
     for (uint32_t l = 0; l < k; l++) EXPECT(m, !overlap(m->n, t[k], t[l]), "one batch: cells %u and %u overlap", t[k].cell, t[l].cell);
     if (k == 0 && !t[0].wide) /* the block the rank holds most of first */
@@ -451,6 +470,7 @@ static bool sim_request(sim_t *m, int rank)
   const bool good = check_pick(m, rank, max, t, n, saved);
   free(saved);
   if (!good) return false;
+  m->S.waiting[rank] = n == 0; /* (the engine's waiting list) */
   if (n == 0) return true;
   batch_t *b = &m->fl[m->nfl++];
   b->rank = rank;

@@ -18,6 +18,17 @@ static bool launched(void)
   return false;
 }
 
+/* The number of processes the launcher says it started (0: it does not say). */
+static int launched_size(void)
+{
+  static const char *const vars[] = {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "MV2_COMM_WORLD_SIZE"};
+  for (size_t k = 0; k < sizeof vars / sizeof *vars; k++) {
+    const char *v = getenv(vars[k]);
+    if (v && atoi(v) > 0) return atoi(v);
+  }
+  return 0;
+}
+
 static void set_prefix(i2m_par_t *par)
 {
   if (par->size > 1) snprintf(par->prefix, sizeof par->prefix, "[rank %d] ", par->rank);
@@ -54,6 +65,16 @@ i2m_err_t i2m_par_init(int *argc, char ***argv, i2m_par_t *par)
   MPI_Comm_dup(MPI_COMM_WORLD, &par->comm);
   MPI_Comm_rank(par->comm, &par->rank);
   MPI_Comm_size(par->comm, &par->size);
+  const int want = launched_size();
+  if (want > 1 && par->size == 1) { /* N copies, each alone, would each write the whole mesh */
+    MPI_Comm_free(&par->comm);
+    MPI_Finalize();
+    par->mpi = false;
+    return I2M_ERROR(I2M_ERR_UNSUPPORTED,
+                     "started as %d MPI processes, but each sees only itself: the launcher and i2m's MPI library differ "
+                     "(run an Open MPI build with Open MPI's mpirun, an MPICH build (make MPI=mpich) with mpirun.mpich)",
+                     want);
+  }
   MPI_Comm local;
   MPI_Comm_split_type(par->comm, MPI_COMM_TYPE_SHARED, par->rank, MPI_INFO_NULL, &local);
   MPI_Comm_rank(local, &par->local_rank);
@@ -139,8 +160,9 @@ i2m_err_t i2m_par_init(int *argc, char ***argv, i2m_par_t *par)
   memset(par, 0, sizeof *par);
   par->size = par->local_size = 1;
   par->comm = 0;
-  I2M_CHECK(!launched() || (getenv("OMPI_COMM_WORLD_SIZE") ? atoi(getenv("OMPI_COMM_WORLD_SIZE")) : getenv("PMI_SIZE") ? atoi(getenv("PMI_SIZE")) : 1) <= 1,
-            I2M_ERR_UNSUPPORTED, "started as one of several MPI processes, but this i2m was built without MPI (make with mpicc)");
+  I2M_CHECK(launched_size() <= 1, I2M_ERR_UNSUPPORTED,
+            "started as %d MPI processes, but this i2m was built without MPI: each would mesh the whole image (make with "
+            "mpicc)", launched_size());
   set_prefix(par);
   return I2M_OK;
 }

@@ -393,5 +393,7 @@ void i2m_refine_release_scratch(i2m_refine_t *r)
 void i2m_refine_release_mesh(i2m_refine_t *r)
 {
   pieces_invalidate(r);
+  i2m_refine_dist_end(r); /* (their slots and lists are the triangulation's) */
+  i2m_refine_tiling_end(r);
   i2m_dt_destroy(&r->dt);
 }

@@ -48,9 +48,11 @@ for bin in "${I2M_BIN:-bin}/i2m" build/asan/bin/i2m; do
   expect_error "$bin" "missing.nrrd" "$TMP/missing.nrrd" -o "$TMP/o.vtu"
   expect_error "$bin" "directory" "$TMP" -o "$TMP/o.vtu"
   expect_error "$bin" "o.vtu exist" "$B" -o "$TMP/no/such/dir/o.vtu"
-  # started by an MPI launcher with several processes: each stops (no N copies writing one file)
-  OMPI_COMM_WORLD_SIZE=4 expect_error "$bin" "4 MPI processes" "$B" -o "$TMP/o.vtu"
-  PMI_SIZE=2 expect_error "$bin" "2 MPI processes" "$B" -o "$TMP/o.vtu"
+  # a launcher says N processes but MPI sees one (another MPI's mpirun, or no MPI in this
+  # build): each stops (no N copies writing one file); (the MPI library's own allocations at
+  # exit are not ours for LeakSanitizer)
+  ASAN_OPTIONS=detect_leaks=0 OMPI_COMM_WORLD_SIZE=4 expect_error "$bin" "4 MPI processes" "$B" -o "$TMP/o.vtu"
+  ASAN_OPTIONS=detect_leaks=0 PMI_SIZE=2 expect_error "$bin" "2 MPI processes" "$B" -o "$TMP/o.vtu"
   # a single foreground voxel: a valid (tiny) mesh, quickly
   if timeout 60 "$bin" "$TMP/speck.nrrd" -o "$TMP/speck.vtu" --quiet &&
      "${I2M_BIN:-bin}/i2m-check" "$TMP/speck.vtu" --max-ratio 2 >/dev/null; then

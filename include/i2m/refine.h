@@ -170,7 +170,8 @@ i2m_err_t i2m_refine_tiling_begin(i2m_refine_t *r);
 void i2m_refine_set_depth(i2m_refine_t *r, int depth);
 /** The octree's depth when none is asked for: as deep as gives @p workers (ranks x threads)
  *  several tasks of each colour (workers <= 0: 3, the deterministic mode's, which must not
- *  depend on them), but never cells shorter than 16 delta along an axis, and at least 1. */
+ *  depend on them), but never cells shorter than 16 delta along an axis, and at least 1 (2
+ *  for more than one worker). */
 int i2m_refine_default_depth(const i2m_refine_t *r, int workers);
 /** The depth set (-1: none). */
 int i2m_refine_depth(const i2m_refine_t *r);

@@ -346,6 +346,7 @@ int i2m_refine_default_depth(const i2m_refine_t *r, int workers)
     for (want = 1; want < DEPTH_MAX && ((int64_t)1 << (3 * want)) < 27 * 4 * (int64_t)workers; want++) {
     }
   const int d = want < size_depth ? want : size_depth;
+  if (workers > 1 && d < 2) return 2; /* (at depth 1 every task's block is the whole grid: nothing could run beside it) */
   return d < 1 ? 1 : d;
 }
 

@@ -1,6 +1,6 @@
 #!/bin/sh
-# A connected tissue stays one piece on every run (the component rule, R8): the knee and the
-# liver at 1, 2 and 4 threads speculative (the knee's 2 and 4 twice) and at 1 and 4 threads
+# A connected tissue stays one piece on every run (the component rule, R8): the knee at 1, 2
+# and 4 threads speculative, the liver at 2, and both at 1 and 4 threads
 # deterministic (the same checksum: checked once), while two busy loops keep both cores
 # loaded (how the knee's label 35 once came out in two pieces in CI).  On every mesh the
 # independent checker asserts --require-whole 10000: every 6-connected image component of at
@@ -43,8 +43,9 @@ print(r['refinement']['components']['split'], r['refinement']['components']['lar
   fi
 }
 for img in knee_atlas.nrrd liver.inr.gz; do
-  for T in 1 2 4; do mesh_and_check "$img" "$T" speculative check; done
-  [ "$img" = knee_atlas.nrrd ] && for T in 2 4; do mesh_and_check "$img" "$T" speculative check; done
+  threads="1 2 4"
+  [ "$img" = liver.inr.gz ] && threads=2 # (the liver splits nothing; the knee is the hard case)
+  for T in $threads; do mesh_and_check "$img" "$T" speculative check; done
   mesh_and_check "$img" 1 deterministic check
   mesh_and_check "$img" 4 deterministic same
 done

@@ -284,6 +284,21 @@ i2m_err_t i2m_refine_slivers_sequential(i2m_refine_t *r);
  *  that failed. */
 i2m_err_t i2m_refine_slivers_end(i2m_refine_t *r, i2m_sliver_stats_t *st);
 
+/* ---- for the dist layer: the sliver perturbation on the octree's tiles, as tasks.  A task
+ * (i2m_refine_tile_slivers, after i2m_refine_slivers_dist_prepare) finds its tile's slivers
+ * in the tile's own tets and treats them inside its zone; rounds and stages are the dist
+ * layer's.  The figures of *st are this rank's (the dist layer sums them). ---- */
+i2m_err_t i2m_refine_slivers_dist_begin(i2m_refine_t *r, double bound);
+/** The bound of this stage (degrees) and the round (it seeds the moves). */
+void i2m_refine_slivers_dist_round(i2m_refine_t *r, double bound, int round);
+/** Slivers of tile id now (below the stage's bound). */
+int64_t i2m_refine_tile_sliver_count(i2m_refine_t *r, uint32_t id);
+/** Before a job of sliver tasks: slots granted, the grids' room made. */
+i2m_err_t i2m_refine_slivers_dist_prepare(i2m_refine_t *r, const uint32_t *tiles, uint32_t n);
+/** Moves tried and kept so far on this rank. */
+void i2m_refine_slivers_dist_moves(const i2m_refine_t *r, int64_t *tried, int64_t *kept);
+i2m_err_t i2m_refine_slivers_dist_end(i2m_refine_t *r, i2m_sliver_stats_t *st);
+
 /** After refinement: frees the spatial grids and the workers' scratch (extraction, stats and
  *  parameters stay usable; the transform is asked only by i2m_refine_repair_fragments). */
 void i2m_refine_release_scratch(i2m_refine_t *r);
@@ -390,6 +405,8 @@ i2m_err_t i2m_refine_set_groups(i2m_refine_t *r, i2m_pieces_global_t *G);
 /** Dist: the part of the local kept tet of label @p label on the face with these sorted global
  *  ids whose other side is another rank's, or -1 (no such face here, or another label). */
 int64_t i2m_refine_part_at_face(i2m_refine_t *r, const i2m_gidx_t key[3], uint16_t label);
+/** Are the pieces of the whole mesh in r those of the mesh as it is (1) or not (0)? */
+int i2m_refine_groups_valid(const i2m_refine_t *r);
 /** The pieces of the whole mesh: set by the dist layer, or resolved from this process's parts
  *  (borrowed, as i2m_refine_parts). */
 i2m_err_t i2m_refine_groups(i2m_refine_t *r, int64_t min_voxels, const i2m_pieces_global_t **out);

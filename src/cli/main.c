@@ -95,8 +95,12 @@ static i2m_err_t run_mesher(run_t *r)
     phase_end(r, I2M_PHASE_REFINE);
     phase_begin(r, "sliver perturbation");
     i2m_threads_opts_t to = {o->threads, o->coarse_factor, !o->no_pin, o->deterministic != 0, o->depth};
-    AGREE(r, r->distributed ? I2M_ERROR(I2M_ERR_UNSUPPORTED, "--sliver-angle under MPI is not there yet")
-                            : i2m_threads_perturb_slivers(r->ref, &to, o->sliver_angle, &r->rep.slivers));
+    if (r->distributed) {
+      const i2m_dist_opts_t d = {to, NULL, -1};
+      I2M_CALL(i2m_dist_perturb_slivers(r->par, r->ref, &d, o->sliver_angle, &r->rep.slivers)); /* (agreed on inside) */
+    } else {
+      AGREE(r, i2m_threads_perturb_slivers(r->ref, &to, o->sliver_angle, &r->rep.slivers));
+    }
     r->rep.sliver_angle = o->sliver_angle;
   }
   if (o->check) AGREE(r, i2m_dt_check(i2m_refine_dt(r->ref), true));

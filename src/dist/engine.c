@@ -91,6 +91,8 @@ typedef struct {
   /* scheduler side (rank 0) */
   sched_t S;
   int stopped;                 /* ranks told to stop */
+  bool slivers;                /* the tasks are the sliver perturbation's (one pass over the cells) */
+  uint8_t *done;               /* rank 0, slivers: [ncells] cells whose task ran this pass */
   int det_stage, det_color, det_pending;
   bool det_points;             /* this round's tasks insert bridge points only (as one process inserts them at once) */
   uint32_t *wide_list, nwide, wide_next;
@@ -216,6 +218,18 @@ static void apply_drops(engine_t *E)
   E->ndrops = 0;
 }
 
+/* A cell's figures for the scheduler (work, wide work, tets, bridge points): its bad elements,
+ * or in a sliver pass its slivers (counted when the pass begins; after a task rank 0 keeps
+ * what it knew of the cells, but for those done: counting them again would cost a pass over
+ * their tets for every task). */
+static void cell_figures(engine_t *E, uint32_t c, bool count, int64_t fig[4])
+{
+  i2m_refine_tile_figures(E->r, c, fig);
+  if (!E->slivers) return;
+  fig[0] = count ? i2m_refine_tile_sliver_count(E->r, c) : 0;
+  fig[1] = fig[3] = 0;
+}
+
 /* An assignment: tasks, and the holders of their blocks' cells; the submeshes held
  * elsewhere are asked for (one request per holder). */
 static void on_assign(engine_t *E, const int64_t *m, int n)
@@ -318,10 +332,12 @@ static void start_batch(engine_t *E)
     wide |= E->batch[k].wide;
     i2m_refine_dist_resolve(E->r, E->batch[k].cell);
   }
-  if (!wide) check(E, i2m_refine_tiles_prepare(E->r, E->tiles, E->nbatch));
+  if (E->slivers) check(E, i2m_refine_slivers_dist_prepare(E->r, E->tiles, E->nbatch));
+  else if (!wide) check(E, i2m_refine_tiles_prepare(E->r, E->tiles, E->nbatch));
   note_peak(E);
   clock_out(E, t);
-  const i2m_pool_job_t job = {wide ? I2M_POOL_WIDE : I2M_POOL_TILES, E->tiles, E->nbatch, E->created};
+  const i2m_pool_job_t job = {E->slivers ? I2M_POOL_SLIVERS : wide ? I2M_POOL_WIDE : I2M_POOL_TILES, E->tiles, E->nbatch,
+                              E->created};
   for (uint32_t k = 0; k < E->nbatch; k++) E->created[k] = 0;
   enter(E, W_RUNNING);
   E->batch_t0 = i2m_wtime() - E->t0;
@@ -355,7 +371,7 @@ static void finish_batch(engine_t *E)
   m[at++] = nc;
   for (uint32_t i = 0; i < nc; i++) {
     m[at++] = cells[i];
-    i2m_refine_tile_figures(E->r, cells[i], m + at);
+    cell_figures(E, cells[i], false, m + at);
     at += 4;
   }
   post(E, 0, TAG_FEEDBACK, m, at * sizeof *m, MPI_INT64_T);
@@ -555,8 +571,15 @@ static void on_feedback(engine_t *E, int q, const int64_t *m, int n)
   sched_cell_t *cells = NULL;
   check(E, i2m_malloc(nc + 1, sizeof *cells, &cells));
   for (uint32_t i = 0; i < nc; i++, at += 5) cells[i] = (sched_cell_t){(uint32_t)m[at], m[at + 1], m[at + 2], m[at + 3], m[at + 4]};
+  if (E->slivers) /* (the slivers of the cells not done yet: as counted when the pass began) */
+    for (uint32_t i = 0; i < nc; i++) cells[i].work = E->S.work[cells[i].cell];
   sched_feedback(&E->S, q, tasks, nt, cells, nc);
   i2m_free(&cells);
+  if (E->slivers) /* one task per cell and pass: the cells done have no more work in it */
+    for (uint32_t k = 0; k < nt; k++) {
+      E->done[tasks[k].cell] = 1;
+      E->S.work[tasks[k].cell] = 0;
+    }
   if (!E->det) {
     serve_waiting(E);
     return;
@@ -619,11 +642,15 @@ static bool advance(engine_t *E)
   return false;
 }
 
+/* The longest sleep of a master with nothing to do: another rank's request for submeshes
+ * waits at most this long for an answer. */
+#define NAP_MAX_US 200
+
 static void nap(int *us)
 {
   struct timespec ts = {0, (long)*us * 1000};
   nanosleep(&ts, NULL);
-  *us = *us < 1000 ? *us * 2 : 1000;
+  *us = *us < NAP_MAX_US ? *us * 2 : NAP_MAX_US;
 }
 
 static bool everyone_stopped(const engine_t *E) { return E->par->rank != 0 || E->stopped == E->par->size; }
@@ -675,7 +702,7 @@ static i2m_err_t engine_seed(engine_t *E)
   int64_t *fig = NULL;
   I2M_CALL(i2m_calloc(4 * (size_t)nc, sizeof *fig, &fig));
   for (uint32_t c = 0; c < nc; c++)
-    if (i2m_refine_holds(E->r, c)) i2m_refine_tile_figures(E->r, c, fig + 4 * c);
+    if (i2m_refine_holds(E->r, c)) cell_figures(E, c, true, fig + 4 * c);
   MPI_Allreduce(MPI_IN_PLACE, fig, 4 * (int)nc, MPI_INT64_T, MPI_SUM, E->par->comm);
   for (uint32_t c = 0; c < nc; c++) {
     S->work[c] = fig[4 * c];
@@ -696,6 +723,7 @@ static i2m_err_t engine_seed(engine_t *E)
   E->det_stage = E->det_color = E->det_pending = 0;
   E->det_points = sched_has_points(S);
   E->nbatch = 0;
+  if (E->done) memset(E->done, 0, nc);
   return I2M_OK;
 }
 
@@ -728,6 +756,7 @@ static void engine_free(engine_t *E)
   i2m_free(&E->created);
   i2m_free(&E->trace);
   i2m_free(&E->wide_list);
+  i2m_free(&E->done);
   sched_free(&E->S);
 }
 
@@ -847,11 +876,15 @@ static i2m_err_t component_rule(engine_t *E, const i2m_threads_opts_t *to, i2m_t
 {
   for (int round = 0; round < I2M_BRIDGE_ROUNDS; round++) {
     int64_t filed = 0;
+    const double t0 = i2m_wtime();
     I2M_CALL(i2m_dist_pieces(E->par, E->r, I2M_WHOLE_MIN_VOXELS));
+    const double t1 = i2m_wtime();
     I2M_CALL(i2m_dist_bridge_points(E->par, E->r, round, &filed));
+    const double t2 = i2m_wtime();
+    if (filed) I2M_CALL(engine_run(E, to, team));
+    i2m_debug("component rule: %lld bridge points; pieces %.2f s, points %.2f s, tasks %.2f s", (long long)filed, t1 - t0,
+              t2 - t1, i2m_wtime() - t2);
     if (!filed) break;
-    i2m_debug("component rule: %lld bridge points", (long long)filed);
-    I2M_CALL(engine_run(E, to, team));
   }
   return I2M_OK;
 }
@@ -879,15 +912,19 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
     if (err == I2M_OK) err = i2m_refine_octree_begin(r);
   }
   I2M_CALL(i2m_par_agree(par, err));
+  const double t1 = i2m_wtime();
   I2M_CALL(i2m_par_agree(par, i2m_refine_dist_begin(r, par->rank == 0)));
   engine_t E;
   I2M_CALL(i2m_par_agree(par, engine_init(&E, par, r, o, T)));
   err = i2m_par_agree(par, scatter_coarse(&E));
   E.t0 = i2m_wtime();
+  i2m_debug("dist: coarse mesh %.2f s, its distribution %.2f s", t1 - t0, E.t0 - t1);
   E.fig.preprocess = E.t0 - t0;
   if (err == I2M_OK) err = i2m_par_agree(par, i2m_refine_dist_set_location(r, E.S.holder));
   if (err == I2M_OK) err = engine_run(&E, &to, team);
+  const double t2 = i2m_wtime();
   if (err == I2M_OK) err = component_rule(&E, &to, team);
+  i2m_debug("dist: tasks %.2f s, component rule %.2f s", t2 - E.t0, i2m_wtime() - t2);
   rep->fine_seconds = i2m_par_max(par, i2m_wtime() - E.t0);
   i2m_refine_stats_t st;
   i2m_refine_get_stats(r, &st);
@@ -899,6 +936,68 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
   E.fig.peak_rss = (double)i2m_peak_rss_bytes();
   if (err == I2M_OK) err = i2m_par_agree(par, gather_figures(par, &E.fig, rep));
   if (err == I2M_OK && o->trace) err = i2m_par_agree(par, write_trace(par, &E, o->trace));
+  engine_free(&E);
+  return err;
+}
+
+/* ---- the sliver perturbation under MPI ---- */
+
+#define SLIVER_FIRST_STAGE 5.0 /* degrees (as one process: the worst first) */
+#define SLIVER_ROUNDS 20
+#define SLIVER_TAIL 50 /* a stage ends when a round keeps fewer than 1/50 of its first round's moves: each
+                          round moves blocks between ranks, the last few moves are not worth it */
+
+/* This rank's sliver figures summed (counts, moves) or at their extreme (angles) over the ranks. */
+static void reduce_sliver_stats(const i2m_par_t *par, i2m_sliver_stats_t *st)
+{
+  int64_t n[4] = {st->slivers_before, st->slivers_after, st->tried, st->kept};
+  i2m_par_sum_i64(par, n, 4);
+  st->slivers_before = n[0];
+  st->slivers_after = n[1];
+  st->tried = n[2];
+  st->kept = n[3];
+  st->min_before = -i2m_par_max(par, -st->min_before);
+  st->min_after = -i2m_par_max(par, -st->min_after);
+  st->seconds = i2m_par_max(par, st->seconds);
+}
+
+i2m_err_t i2m_dist_perturb_slivers(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_opts_t *o, double bound,
+                                   i2m_sliver_stats_t *st)
+{
+  memset(st, 0, sizeof *st);
+  const int T = o->threads.threads > 0 ? o->threads.threads : i2m_threads_default();
+  i2m_threads_opts_t to = o->threads;
+  to.threads = T;
+  i2m_threads_report_t team;
+  memset(&team, 0, sizeof team);
+  engine_t E;
+  I2M_CALL(i2m_par_agree(par, i2m_refine_slivers_dist_begin(r, bound)));
+  i2m_err_t err = i2m_par_agree(par, engine_init(&E, par, r, o, T));
+  E.slivers = true;
+  if (err == I2M_OK) err = i2m_par_agree(par, i2m_calloc(E.S.ncells, 1, &E.done));
+  E.t0 = i2m_wtime();
+  const double stages[2] = {bound < SLIVER_FIRST_STAGE ? bound : SLIVER_FIRST_STAGE, bound};
+  int round = 0;
+  for (int k = 0; k < 2 && err == I2M_OK; k++) {
+    if (k == 1 && stages[1] <= stages[0]) break;
+    int64_t first = 0;
+    for (int n = 0; n < SLIVER_ROUNDS && err == I2M_OK; n++, round++) { /* rounds while moves are kept */
+      int64_t before[2], after[2];
+      i2m_refine_slivers_dist_moves(r, &before[0], &before[1]);
+      i2m_refine_slivers_dist_round(r, stages[k], round);
+      err = engine_run(&E, &to, &team);
+      i2m_threads_report_free(&team);
+      i2m_refine_slivers_dist_moves(r, &after[0], &after[1]);
+      int64_t kept = after[1] - before[1];
+      i2m_par_sum_i64(par, &kept, 1);
+      i2m_debug("slivers: stage %g deg, round %d: %lld moves kept", stages[k], round, (long long)kept);
+      if (n == 0) first = kept;
+      if (kept == 0 || kept * SLIVER_TAIL < first) break;
+    }
+  }
+  const i2m_err_t end = i2m_refine_slivers_dist_end(r, st);
+  if (err == I2M_OK) err = i2m_par_agree(par, end);
+  reduce_sliver_stats(par, st);
   engine_free(&E);
   return err;
 }
@@ -919,5 +1018,16 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
 }
 
 void i2m_dist_report_free(i2m_dist_report_t *rep) { i2m_free(&rep->rank); }
+
+i2m_err_t i2m_dist_perturb_slivers(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_opts_t *o, double bound,
+                                   i2m_sliver_stats_t *st)
+{
+  (void)par;
+  (void)r;
+  (void)o;
+  (void)bound;
+  memset(st, 0, sizeof *st);
+  return I2M_ERROR(I2M_ERR_UNSUPPORTED, "this i2m was built without MPI");
+}
 
 #endif

@@ -274,6 +274,9 @@ static i2m_err_t scatter_pieces(const i2m_par_t *par, const i2m_pieces_global_t 
 
 i2m_err_t i2m_dist_pieces(const i2m_par_t *par, i2m_refine_t *r, int64_t min_voxels)
 {
+  int valid = i2m_refine_groups_valid(r); /* (nothing changed since the last call, on any rank) */
+  MPI_Allreduce(MPI_IN_PLACE, &valid, 1, MPI_INT, MPI_MIN, par->comm);
+  if (valid) return I2M_OK;
   i2m_parts_t mine, all;
   I2M_CALL(i2m_par_agree(par, i2m_refine_parts(r, &mine)));
   int64_t n = (int64_t)mine.nparts, first = 0;

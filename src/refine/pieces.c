@@ -622,6 +622,8 @@ i2m_err_t i2m_refine_groups(i2m_refine_t *r, int64_t min_voxels, const i2m_piece
   return I2M_OK;
 }
 
+int i2m_refine_groups_valid(const i2m_refine_t *r) { return r->pieces_valid && r->pieces.global_valid; }
+
 i2m_err_t i2m_refine_set_groups(i2m_refine_t *r, i2m_pieces_global_t *G)
 {
   pieces_t *P;

@@ -631,8 +631,11 @@ static i2m_err_t treat_all(perturb_t *P, const sliver_t *s, size_t n)
   return I2M_OK;
 }
 
+static i2m_err_t tile_slivers_dist(i2m_refine_t *r, int k, uint32_t id);
+
 i2m_err_t i2m_refine_tile_slivers(i2m_refine_t *r, int k, uint32_t id)
 {
+  if (dist_tracking(r)) return tile_slivers_dist(r, k, id);
   struct sliver_pass *S = r->slivers;
   perturb_t *P = &S->per[k];
   P->rng = rng_seed(r, S->round, id);
@@ -707,4 +710,113 @@ i2m_err_t i2m_refine_perturb_slivers(i2m_refine_t *r, double bound, i2m_sliver_s
   }
   const i2m_err_t end = i2m_refine_slivers_end(r, st);
   return err != I2M_OK ? err : end;
+}
+
+/* ---- under the dist layer: the octree's tiles; a task finds its tile's slivers itself (the
+ * tile's submesh may have come from another rank since the round began), treats them inside
+ * its zone, and what the zone cannot hold waits for the next round ---- */
+
+i2m_err_t i2m_refine_slivers_dist_begin(i2m_refine_t *r, double bound)
+{
+  I2M_CHECK(!r->slivers && r->tiling && r->tiling->octree && dist_tracking(r), I2M_ERR_INTERNAL,
+            "the distributed sliver pass needs the octree's tiles");
+  pieces_invalidate(r);
+  I2M_CALL(i2m_calloc(1, sizeof *r->slivers, &r->slivers));
+  struct sliver_pass *S = r->slivers;
+  S->final_bound = bound;
+  S->bound = bound < FIRST_STAGE ? bound : FIRST_STAGE;
+  S->t0 = i2m_wtime();
+  i2m_err_t err = i2m_calloc((size_t)r->nworkers, sizeof *S->per, &S->per);
+  for (int k = 0; err == I2M_OK && k < r->nworkers; k++) S->per[k].w = &r->workers[k];
+  if (err == I2M_OK) err = collect_all(r, bound, &S->list, &S->st.min_before); /* (this rank's figures) */
+  S->st.slivers_before = (int64_t)S->list.n;
+  S->list.n = 0;
+  if (err != I2M_OK) pass_free(r);
+  return err;
+}
+
+void i2m_refine_slivers_dist_round(i2m_refine_t *r, double bound, int round)
+{
+  r->slivers->bound = bound;
+  r->slivers->round = round;
+}
+
+/* Tile id's slivers now, in order. */
+static i2m_err_t tile_slivers(const i2m_refine_t *r, uint32_t id, sliver_list_t *L)
+{
+  const i2m_dt_t *dt = r->dt;
+  const tile_t *tl = &r->tiling->tile[id];
+  const double cos_bound = cos(r->slivers->bound * (I2M_PI / 180.0));
+  L->n = 0;
+  for (uint32_t i = 0; i < tl->ntets; i++) { /* (stale entries: their meta moved on) */
+    const uint32_t t = tl->tets[i].t;
+    if (i2m_dt_meta(dt, t) != tl->tets[i].meta || !tet_kept(dt, t)) continue;
+    I2M_CALL(consider(dt, t, tet_max_cosine(dt, t), cos_bound, L));
+  }
+  if (L->n > 1) qsort(L->a, L->n, sizeof *L->a, cmp_sliver);
+  size_t n = 0; /* (a tet filed twice is listed twice) */
+  for (size_t k = 0; k < L->n; k++)
+    if (n == 0 || L->a[k].t != L->a[n - 1].t || L->a[k].meta != L->a[n - 1].meta) L->a[n++] = L->a[k];
+  L->n = n;
+  return I2M_OK;
+}
+
+int64_t i2m_refine_tile_sliver_count(i2m_refine_t *r, uint32_t id)
+{
+  struct sliver_pass *S = r->slivers;
+  if (tile_slivers(r, id, &S->list) != I2M_OK) return 0;
+  const int64_t n = (int64_t)S->list.n;
+  S->list.n = 0;
+  return n;
+}
+
+i2m_err_t i2m_refine_slivers_dist_prepare(i2m_refine_t *r, const uint32_t *tiles, uint32_t n)
+{
+  tiling_t *g = r->tiling;
+  pieces_invalidate(r); /* (the moves change the mesh) */
+  g->nactive = 0;
+  for (uint32_t i = 0; i < n; i++) {
+    const int64_t m = i2m_refine_tile_sliver_count(r, tiles[i]);
+    I2M_CALL(i2m_dt_slots_grant(r->dt, &g->tile[tiles[i]].slots, (uint32_t)(256 + 64 * m), (uint32_t)(16 + 2 * m)));
+    g->active[g->nactive++] = tiles[i];
+  }
+  I2M_CALL(vgrid_reserve(&r->surf, r->dt->cap_v)); /* nobody grows the grids while tiles run */
+  return vgrid_reserve(&r->freev, r->dt->cap_v);
+}
+
+/* Worker k on tile id's slivers (dist). */
+static i2m_err_t tile_slivers_dist(i2m_refine_t *r, int k, uint32_t id)
+{
+  struct sliver_pass *S = r->slivers;
+  perturb_t *P = &S->per[k];
+  sliver_list_t L = {0};
+  I2M_CALL(tile_slivers(r, id, &L));
+  P->rng = rng_seed(r, S->round, id);
+  tiles_bind(P->w, id, false);
+  i2m_err_t err = treat_all(P, L.a, L.n);
+  tiles_unbind(P->w);
+  P->deferred.n = 0; /* (the next round's task finds them again, maybe with its zone placed better) */
+  P->ntouched = 0;
+  i2m_free(&L.a);
+  return err;
+}
+
+void i2m_refine_slivers_dist_moves(const i2m_refine_t *r, int64_t *tried, int64_t *kept)
+{
+  moves_so_far(r, r->slivers, tried, kept);
+}
+
+i2m_err_t i2m_refine_slivers_dist_end(i2m_refine_t *r, i2m_sliver_stats_t *st)
+{
+  struct sliver_pass *S = r->slivers;
+  i2m_err_t err = I2M_OK;
+  if (S) {
+    moves_so_far(r, S, &S->st.tried, &S->st.kept);
+    err = collect_all(r, S->final_bound, &S->list, &S->st.min_after);
+    S->st.slivers_after = (int64_t)S->list.n;
+    S->st.seconds = i2m_wtime() - S->t0;
+    if (st) *st = S->st;
+  }
+  pass_free(r);
+  return err;
 }

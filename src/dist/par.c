@@ -5,18 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-/* Was the process started by an MPI launcher (the variables mpirun, mpiexec, srun set)? */
-static bool launched(void)
-{
-  const char *force = getenv("I2M_MPI");
-  if (force && (force[0] == '0' || force[0] == '1')) return force[0] == '1';
-  static const char *const vars[] = {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMI_RANK", "PMIX_RANK", "MPI_LOCALNRANKS",
-                                     "MV2_COMM_WORLD_SIZE"};
-  for (size_t k = 0; k < sizeof vars / sizeof *vars; k++)
-    if (getenv(vars[k])) return true;
-  return false;
-}
+#include <time.h>
 
 /* The number of processes the launcher says it started (0: it does not say). */
 static int launched_size(void)
@@ -36,6 +25,19 @@ static void set_prefix(i2m_par_t *par)
 }
 
 #if I2M_HAVE_MPI
+
+/* Was the process started by an MPI launcher (the variables mpirun, mpiexec, srun set)? */
+static bool launched(void)
+{
+  const char *force = getenv("I2M_MPI");
+  if (force && (force[0] == '0' || force[0] == '1')) return force[0] == '1';
+  static const char *const vars[] = {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMI_RANK", "PMIX_RANK", "MPI_LOCALNRANKS",
+                                     "MV2_COMM_WORLD_SIZE"};
+  for (size_t k = 0; k < sizeof vars / sizeof *vars; k++)
+    if (getenv(vars[k])) return true;
+  return false;
+}
+
 
 static MPI_Comm abort_comm = MPI_COMM_NULL; /* (for i2m_abort's hook: a process-wide handle) */
 
@@ -96,11 +98,29 @@ void i2m_par_finalize(i2m_par_t *par)
   par->mpi = false;
 }
 
+/* Waits for a request, sleeping a little longer each time (a rank that waits long at an
+ * agreement, as the others while rank 0 builds the coarse mesh, would otherwise spin in the
+ * MPI library and take a core from the ranks that work). */
+static void wait_sleeping(MPI_Request *req)
+{
+  long ns = 20000;
+  for (;;) {
+    int done = 0;
+    MPI_Test(req, &done, MPI_STATUS_IGNORE);
+    if (done) return;
+    const struct timespec ts = {0, ns};
+    nanosleep(&ts, NULL);
+    ns = ns < 1000000 ? 2 * ns : 1000000;
+  }
+}
+
 i2m_err_t i2m_par_agree(const i2m_par_t *par, i2m_err_t err)
 {
   if (!par->mpi) return err;
   int mine = err != I2M_OK ? par->rank : par->size, first = par->size;
-  MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, par->comm);
+  MPI_Request req;
+  MPI_Iallreduce(&mine, &first, 1, MPI_INT, MPI_MIN, par->comm, &req);
+  wait_sleeping(&req);
   if (first == par->size) return I2M_OK;
   char msg[1024];
   int code = (int)err;

@@ -218,26 +218,38 @@ static i2m_err_t describe_parts(const i2m_refine_t *r, pieces_t *P)
   comp_index_t H = {NULL, NULL, 0};
   size_t cap_comp = 0;
   i2m_err_t err = I2M_OK;
+  uint32_t last_part = UINT32_MAX, last_comp = UINT32_MAX, e = 0; /* (neighbouring slots: often one entry) */
   for (uint32_t t = 0; t < n && err == I2M_OK; t++) {
     if (!tet_kept(dt, t)) continue;
     const uint32_t pi = atomic_load_explicit(&P->par[t], memory_order_relaxed);
     i2m_part_t *p = &P->part[pi];
     const double v = fabs(pieces_tet_volume(dt, t));
-    i2m_gidx_t k[4];
-    pieces_tet_key(dt, t, k);
+    const uint32_t *tv = dt->tv + 4 * (size_t)t;
+    i2m_gidx_t low = i2m_dt_gid(dt, tv[0]); /* a key begins with the least id: most tets lose there */
+    for (int i = 1; i < 4; i++) low = i2m_dt_gid(dt, tv[i]) < low ? i2m_dt_gid(dt, tv[i]) : low;
+    i2m_gidx_t k[4] = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+    if (low <= p->key[0]) {
+      pieces_tet_key(dt, t, k);
+      key_min(p->key, k);
+    }
     p->ntets++;
     p->volume += v;
-    key_min(p->key, k);
     const uint32_t c = atomic_load_explicit(&P->idx[t], memory_order_relaxed);
     if (c == UINT32_MAX) continue;
-    uint32_t e;
-    err = comp_entry(P, &H, pi, c, &cap_comp, &e);
-    if (err != I2M_OK) break;
+    if (pi != last_part || c != last_comp) {
+      err = comp_entry(P, &H, pi, c, &cap_comp, &e);
+      if (err != I2M_OK) break;
+      last_part = pi;
+      last_comp = c;
+    }
     i2m_part_comp_t *ce = &P->comp[e];
     ce->volume += v;
-    if (pieces_key_cmp(k, ce->key) < 0) {
-      memcpy(ce->key, k, sizeof k);
-      ce->seed = t;
+    if (low <= ce->key[0]) {
+      if (k[0] == INT64_MAX) pieces_tet_key(dt, t, k);
+      if (pieces_key_cmp(k, ce->key) < 0) {
+        memcpy(ce->key, k, sizeof k);
+        ce->seed = t;
+      }
     }
   }
   i2m_free(&H.key);

@@ -226,9 +226,10 @@ bool i2m_refine_holds(const i2m_refine_t *r, uint32_t id);
  *  global ids, the cells across its outer faces, its bad elements and its state.  Reads only
  *  the tile's tets and vertices: may run while tasks run on blocks without this tile. */
 i2m_err_t i2m_refine_pack(i2m_refine_t *r, uint32_t id, void **buf, size_t *len);
-/** Tile id leaves: its tets and the vertices no local tet uses any more; the faces of the
- *  local tets next to it become another rank's. */
-i2m_err_t i2m_refine_drop(i2m_refine_t *r, uint32_t id);
+/** Tiles ids[0..n) leave: their tets and the vertices no local tet uses any more; the faces of
+ *  the local tets next to them become another rank's.  (Several at once: the vertices that
+ *  need another local tet find it in one pass over the remote faces.) */
+i2m_err_t i2m_refine_drop(i2m_refine_t *r, const uint32_t *ids, uint32_t n);
 /** A submesh arrives: joined to the local tets by matching faces on global ids.  *tile (may be
  *  NULL) gets its tile. */
 i2m_err_t i2m_refine_unpack(i2m_refine_t *r, const void *buf, size_t len, uint32_t *tile);

@@ -214,7 +214,7 @@ static void request_tasks(engine_t *E)
 /* The cells sent away leave the local mesh (no job runs). */
 static void apply_drops(engine_t *E)
 {
-  for (uint32_t i = 0; i < E->ndrops; i++) check(E, i2m_refine_drop(E->r, E->drops[i]));
+  check(E, i2m_refine_drop(E->r, E->drops, E->ndrops));
   E->ndrops = 0;
 }
 
@@ -795,8 +795,12 @@ static i2m_err_t scatter_coarse(engine_t *E)
         E->fig.bytes_out += (int64_t)len;
       }
     }
+    uint32_t *away = NULL, naway = 0; /* (the cells sent leave together) */
+    if (err == I2M_OK) err = i2m_malloc(S->ncells, sizeof *away, &away);
     for (uint32_t c = 0; c < S->ncells && err == I2M_OK; c++)
-      if (S->home[c] != 0) err = i2m_refine_drop(E->r, c);
+      if (S->home[c] != 0) away[naway++] = c;
+    if (err == I2M_OK) err = i2m_refine_drop(E->r, away, naway);
+    i2m_free(&away);
   } else {
     int64_t n = 0;
     MPI_Recv(&n, 1, MPI_INT64_T, 0, TAG_DATA, par->comm, MPI_STATUS_IGNORE);

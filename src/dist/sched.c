@@ -22,6 +22,7 @@ i2m_err_t sched_init(sched_t *S, const int32_t n[3], int nranks)
   if (err == I2M_OK) err = i2m_calloc((size_t)nranks, sizeof *S->inflight, &S->inflight);
   if (err == I2M_OK) err = i2m_calloc((size_t)nranks, sizeof *S->waiting, &S->waiting);
   if (err == I2M_OK) err = i2m_calloc((size_t)nranks, sizeof *S->done, &S->done);
+  if (err == I2M_OK) err = i2m_calloc((size_t)nranks, sizeof *S->held, &S->held);
   if (err != I2M_OK) sched_free(S);
   return err;
 }
@@ -38,6 +39,7 @@ void sched_free(sched_t *S)
   i2m_free(&S->inflight);
   i2m_free(&S->waiting);
   i2m_free(&S->done);
+  i2m_free(&S->held);
 }
 
 static void coords(const sched_t *S, uint32_t c, int32_t x[3])
@@ -162,10 +164,23 @@ static int64_t held_tets(const sched_t *S, int rank, int64_t *total)
   return mine;
 }
 
+/* May `rank` fetch data for task t?  Not when another rank holds more of its block, will ask
+ * again (it is busy) and holds no more than SCHED_HOLD_SHARE times its share of the tets
+ * (held[], before the pick: a rank that holds that much may be relieved of some):
+ * the task waits for it, instead of the block's data moving back and forth between the ranks
+ * at the borders of their shares. */
+static bool best_place(const sched_t *S, int rank, sched_task_t t, const int64_t *held, int64_t total)
+{
+  const int b = sched_best_rank(S, t);
+  return b == rank || S->waiting[b] || S->done[b] || (double)held[b] * S->nranks > (double)total * SCHED_HOLD_SHARE;
+}
+
 uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
 {
   int64_t total;
   const int64_t held = held_tets(S, rank, &total);
+  for (int q = 0; q < S->nranks; q++) S->held[q] = 0;
+  for (uint32_t c = 0; c < S->ncells; c++) S->held[S->holder[c]] += S->tets[c] + 1;
   /* a rank that fetches data may not come to hold much more than its share: memory stays
    * spread (the data follows the work, but not all of it to the fastest rank) */
   int64_t cap = S->nranks > 1 ? (int64_t)((double)total * SCHED_HOLD_SHARE / S->nranks) : INT64_MAX;
@@ -183,6 +198,7 @@ uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
       const int h = S->home[c] == rank;
       const int64_t m = to_move(S, rank, t);
       if (m > 0 && held + m > cap) continue;
+      if (m > 0 && !stalled && !best_place(S, rank, t, S->held, total)) continue;
       if (m < best_move || (m == best_move && (h > best_home || (h == best_home && S->work[c] > best_work)))) {
         best = t;
         best_home = h;
@@ -195,7 +211,7 @@ uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
         const sched_task_t t = {c, true};
         if (!sched_runnable(S, t)) continue;
         const int64_t m = to_move(S, rank, t);
-        if (m > 0 && held + m > cap) continue;
+        if (m > 0 && (held + m > cap || (!stalled && !best_place(S, rank, t, S->held, total)))) continue;
         sched_give(S, rank, t);
         out[0] = t;
         return 1;

@@ -50,6 +50,7 @@ typedef struct {
   int32_t *inflight; /* [nranks] tasks each rank is running */
   bool *waiting;     /* [nranks] ranks on the waiting list */
   bool *done;        /* [nranks] ranks told to stop */
+  int64_t *held;     /* [nranks] scratch of sched_pick: the tets each rank holds (+1 a cell) */
   int64_t tasks_given, wide_given;
 } sched_t;
 
@@ -70,7 +71,9 @@ bool sched_runnable(const sched_t *S, sched_task_t t);
 /** Up to max tasks for `rank` (asynchronous mode): cells with work whose blocks are free and
  *  do not overlap each other: cells of its share first, those whose block it holds most of
  *  first (then the busiest); then others' (the data follows the work, while the rank holds
- *  less than SCHED_HOLD_SHARE times its share of the tets).  Their blocks are
+ *  less than SCHED_HOLD_SHARE times its share of the tets, and only when no busy rank holds
+ *  more of the block, unless that one holds more than SCHED_HOLD_SHARE times its share: it
+ *  will ask again).  Their blocks are
  *  locked and now belong to the rank.  Returns their number (0: nothing can run now).  A wide
  *  task comes alone. */
 uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out);

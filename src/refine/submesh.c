@@ -597,28 +597,40 @@ static i2m_err_t drop_vertex(i2m_refine_t *r, uint32_t v)
   return i2m_dt_give_vertex(dt, v);
 }
 
-/* A local tet that holds v (vremote[v] > 0 says one exists; it has a remote face holding v). */
-static void rehome_vertex(i2m_refine_t *r, uint32_t v)
+/* The vertices whose tet left while they still lie on a remote face of a local tet get that
+ * tet: one pass over the remote faces for all of them (vmark flags them meanwhile). */
+static void rehome_vertices(i2m_refine_t *r, const uint32_t *v, uint32_t n)
 {
-  const struct submesh *S = r->sub;
+  struct submesh *S = r->sub;
   i2m_dt_t *dt = r->dt;
-  const i2m_gidx_t g = i2m_dt_gid(dt, v);
-  for (size_t h = 0; h < S->cap_rf; h++) {
+  uint32_t left = 0;
+  for (uint32_t k = 0; k < n; k++)
+    if (dt->vkind[v[k]] != I2M_VK_DEAD && S->vremote[v[k]] && !i2m_dt_alive(dt, dt->vtet[v[k]]) && S->vmark[v[k]] == PACK_NONE) {
+      S->vmark[v[k]] = 0;
+      left++;
+    }
+  for (size_t h = 0; h < S->cap_rf && left; h++) {
     const rface_t *f = &S->rf[h];
-    if (f->key[0] < 0 || (f->key[0] != g && f->key[1] != g && f->key[2] != g)) continue;
-    dt->vtet[v] = f->face >> 2;
-    return;
+    if (f->key[0] < 0) continue;
+    const uint32_t t = f->face >> 2, *tv = dt->tv + 4 * (size_t)t;
+    for (int j = 0; j < 3; j++) {
+      const uint32_t w = tv[FACE_V[f->face & 3][j]];
+      if (S->vmark[w] != 0) continue;
+      dt->vtet[w] = t;
+      S->vmark[w] = PACK_NONE;
+      left--;
+    }
   }
+  for (uint32_t k = 0; k < n; k++) S->vmark[v[k]] = PACK_NONE;
 }
 
-i2m_err_t i2m_refine_drop(i2m_refine_t *r, uint32_t id)
+/* One tile leaves; the vertices that need another tet are added to *lost. */
+static i2m_err_t drop_tile(i2m_refine_t *r, uint32_t id, uint32_t **lost, uint32_t *nlost, uint32_t *cap_lost)
 {
   struct submesh *S = r->sub;
   i2m_dt_t *dt = r->dt;
   tile_t *tl = &r->tiling->tile[id];
   uint32_t *tets = NULL, *verts = NULL, nt = 0, nv = 0;
-  pieces_invalidate(r);
-  I2M_CALL(sub_room(S, dt));
   i2m_err_t err = number_submesh(r, tl, &tets, &nt, &verts, &nv);
   for (uint32_t k = 0; k < nt && err == I2M_OK; k++) { /* faces to the tets that stay become remote */
     const uint32_t t = tets[k];
@@ -642,8 +654,15 @@ i2m_err_t i2m_refine_drop(i2m_refine_t *r, uint32_t id)
   for (uint32_t k = 0; k < nt && err == I2M_OK; k++) err = i2m_dt_give_tet(dt, tets[k]);
   for (uint32_t k = 0; k < nv && err == I2M_OK; k++) {
     const uint32_t v = verts[k];
-    if (v >= 8 && S->vremote[v] == 0) err = drop_vertex(r, v); /* (the box corners are every rank's) */
-    else if (S->vremote[v] && !i2m_dt_alive(dt, dt->vtet[v])) rehome_vertex(r, v);
+    if (v >= 8 && S->vremote[v] == 0) {
+      err = drop_vertex(r, v); /* (the box corners are every rank's) */
+    } else if (S->vremote[v] && !i2m_dt_alive(dt, dt->vtet[v])) {
+      if (*nlost == *cap_lost) {
+        *cap_lost = *cap_lost ? 2 * *cap_lost : 256;
+        err = i2m_realloc(*cap_lost, sizeof **lost, lost);
+      }
+      if (err == I2M_OK) (*lost)[(*nlost)++] = v;
+    }
   }
   unnumber(S, tets, nt, verts, nv);
   i2m_free(&tets);
@@ -654,6 +673,19 @@ i2m_err_t i2m_refine_drop(i2m_refine_t *r, uint32_t id)
   tl->dirty = false;
   tl->ntets = tl->live_tets = 0;
   tl->held = false;
+  return err;
+}
+
+i2m_err_t i2m_refine_drop(i2m_refine_t *r, const uint32_t *ids, uint32_t n)
+{
+  uint32_t *lost = NULL, nlost = 0, cap_lost = 0;
+  if (n == 0) return I2M_OK;
+  pieces_invalidate(r);
+  I2M_CALL(sub_room(r->sub, r->dt));
+  i2m_err_t err = I2M_OK;
+  for (uint32_t k = 0; k < n && err == I2M_OK; k++) err = drop_tile(r, ids[k], &lost, &nlost, &cap_lost);
+  if (err == I2M_OK) rehome_vertices(r, lost, nlost);
+  i2m_free(&lost);
   return err;
 }
 

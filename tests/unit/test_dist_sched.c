@@ -403,8 +403,29 @@ static bool check_apart(sim_t *m)
   return true;
 }
 
+/* The rank that holds most of task t's block (by tets; the lowest on a tie). */
+static int model_best_rank(const sim_t *m, const int32_t *holder, sched_task_t t)
+{
+  uint32_t cells[125];
+  const uint32_t nb = model_block(m->n, t, cells);
+  int best = 0;
+  int64_t most = -1;
+  for (int q = 0; q < m->P; q++) {
+    int64_t held = 0;
+    for (uint32_t i = 0; i < nb; i++)
+      if (holder[cells[i]] == q) held += m->S.tets[cells[i]] + 1;
+    if (held > most) {
+      most = held;
+      best = q;
+    }
+  }
+  return best;
+}
+
 /* May `rank` fetch what task t needs (the bound on what a rank holds, SCHED_HOLD_SHARE times its
- * share, unless nothing is in flight and every other rank waits)? */
+ * share, and no busy rank, one neither waiting nor stopped, that holds at most SCHED_HOLD_SHARE
+ * times its share, holds more of the block; unless nothing is in flight and every other rank
+ * waits)? */
 static bool model_may_fetch(const sim_t *m, const int32_t *holder, int rank, sched_task_t t)
 {
   const int64_t f = fetch_cost(m, holder, rank, t);
@@ -412,11 +433,14 @@ static bool model_may_fetch(const sim_t *m, const int32_t *holder, int rank, sch
   bool stalled = m->nfl == 0;
   for (int q = 0; q < m->P; q++) stalled &= q == rank || m->S.waiting[q] || m->S.done[q];
   if (stalled) return true;
-  int64_t held = 0, total = 0;
+  const int b = model_best_rank(m, holder, t);
+  int64_t held = 0, held_b = 0, total = 0;
   for (uint32_t c = 0; c < m->S.ncells; c++) {
     total += m->S.tets[c] + 1;
     if (holder[c] == rank) held += m->S.tets[c] + 1;
+    if (holder[c] == b) held_b += m->S.tets[c] + 1;
   }
+  if (b != rank && !m->S.waiting[b] && !m->S.done[b] && (double)held_b * m->P <= (double)total * SCHED_HOLD_SHARE) return false;
   return held + f <= (int64_t)((double)total * SCHED_HOLD_SHARE / m->P);
 }
 
@@ -785,6 +809,7 @@ static void test_busy_by_hand(void)
   S.points[5] = 0;
   S.wide[100] = 2; /* only wide work: one wide task, alone */
   CU_ASSERT(sched_busy(&S));
+  S.done[0] = true; /* (rank 0, which holds every block, has stopped: the others may fetch) */
   CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 2, 4, t), 1);
   CU_ASSERT(t[0].cell == 100 && t[0].wide);
   CU_ASSERT(S.holder[100] == 2 && S.lock[100] == 1 && S.inflight[2] == 1);

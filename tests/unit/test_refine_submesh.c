@@ -90,7 +90,7 @@ static size_t move(i2m_refine_t *from, i2m_refine_t *to, uint32_t id)
   size_t len = 0;
   uint32_t got = 0;
   CU_ASSERT_FATAL(i2m_refine_pack(from, id, &buf, &len) == I2M_OK);
-  CU_ASSERT_FATAL(i2m_refine_drop(from, id) == I2M_OK);
+  CU_ASSERT_FATAL(i2m_refine_drop(from, &id, 1) == I2M_OK);
   i2m_err_t err = i2m_refine_unpack(to, buf, len, &got);
   if (err) fprintf(stderr, "%s\n", i2m_error_message());
   CU_ASSERT_FATAL(err == I2M_OK);

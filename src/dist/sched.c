@@ -151,17 +151,17 @@ static int64_t to_move(const sched_t *S, int rank, sched_task_t t)
   return m;
 }
 
-/* The tets a rank holds, and in all (the last figures fed back; a cell weighs one more, as
- * in to_move). */
-static int64_t held_tets(const sched_t *S, int rank, int64_t *total)
+/* The tets each rank holds into S->held, and in all (the last figures fed back; a cell weighs
+ * one more, as in to_move). */
+static int64_t held_tets(sched_t *S)
 {
-  int64_t mine = 0;
-  *total = 0;
+  int64_t total = 0;
+  for (int q = 0; q < S->nranks; q++) S->held[q] = 0;
   for (uint32_t c = 0; c < S->ncells; c++) {
-    *total += S->tets[c] + 1;
-    if (S->holder[c] == rank) mine += S->tets[c] + 1;
+    total += S->tets[c] + 1;
+    S->held[S->holder[c]] += S->tets[c] + 1;
   }
-  return mine;
+  return total;
 }
 
 /* May `rank` fetch data for task t?  Not when another rank holds more of its block, will ask
@@ -177,10 +177,7 @@ static bool best_place(const sched_t *S, int rank, sched_task_t t, const int64_t
 
 uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
 {
-  int64_t total;
-  const int64_t held = held_tets(S, rank, &total);
-  for (int q = 0; q < S->nranks; q++) S->held[q] = 0;
-  for (uint32_t c = 0; c < S->ncells; c++) S->held[S->holder[c]] += S->tets[c] + 1;
+  const int64_t total = held_tets(S), held = S->held[rank];
   /* a rank that fetches data may not come to hold much more than its share: memory stays
    * spread (the data follows the work, but not all of it to the fastest rank) */
   int64_t cap = S->nranks > 1 ? (int64_t)((double)total * SCHED_HOLD_SHARE / S->nranks) : INT64_MAX;

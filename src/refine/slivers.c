@@ -677,15 +677,22 @@ i2m_err_t i2m_refine_slivers_sequential(i2m_refine_t *r)
   return err;
 }
 
+/* The pass's closing figures: its moves, the slivers left below `bound`, its time. */
+static i2m_err_t final_stats(i2m_refine_t *r, struct sliver_pass *S, double bound)
+{
+  moves_so_far(r, S, &S->st.tried, &S->st.kept);
+  const i2m_err_t err = collect_all(r, bound, &S->list, &S->st.min_after);
+  S->st.slivers_after = (int64_t)S->list.n;
+  S->st.seconds = i2m_wtime() - S->t0;
+  return err;
+}
+
 i2m_err_t i2m_refine_slivers_end(i2m_refine_t *r, i2m_sliver_stats_t *st)
 {
   struct sliver_pass *S = r->slivers;
   i2m_err_t err = I2M_OK;
   if (S) {
-    moves_so_far(r, S, &S->st.tried, &S->st.kept);
-    err = collect_all(r, S->bound, &S->list, &S->st.min_after);
-    S->st.slivers_after = (int64_t)S->list.n;
-    S->st.seconds = i2m_wtime() - S->t0;
+    err = final_stats(r, S, S->bound);
     i2m_progress_end(&S->progress, S->st.tried);
     if (st) *st = S->st;
   }
@@ -811,10 +818,7 @@ i2m_err_t i2m_refine_slivers_dist_end(i2m_refine_t *r, i2m_sliver_stats_t *st)
   struct sliver_pass *S = r->slivers;
   i2m_err_t err = I2M_OK;
   if (S) {
-    moves_so_far(r, S, &S->st.tried, &S->st.kept);
-    err = collect_all(r, S->final_bound, &S->list, &S->st.min_after);
-    S->st.slivers_after = (int64_t)S->list.n;
-    S->st.seconds = i2m_wtime() - S->t0;
+    err = final_stats(r, S, S->final_bound);
     if (st) *st = S->st;
   }
   pass_free(r);

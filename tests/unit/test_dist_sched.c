@@ -623,24 +623,8 @@ static void test_async_small(void)
 
 /* ---- the deterministic mode, simulated ---- */
 
-/* The rank that holds most tets of t's block (+1 a cell); the lowest on a tie. */
-static int model_best(const sim_t *m, sched_task_t t)
-{
-  uint32_t cells[125];
-  const uint32_t nb = model_block(m->n, t, cells);
-  int best = 0;
-  int64_t most = -1;
-  for (int q = 0; q < m->P; q++) {
-    int64_t held = 0;
-    for (uint32_t i = 0; i < nb; i++)
-      if (m->S.holder[cells[i]] == q) held += m->S.tets[cells[i]] + 1;
-    if (held > most) {
-      most = held;
-      best = q;
-    }
-  }
-  return best;
-}
+/* The rank that holds most tets of t's block (+1 a cell) now; the lowest on a tie. */
+static int model_best(const sim_t *m, sched_task_t t) { return model_best_rank(m, m->S.holder, t); }
 
 /* One phase: the tasks of a colour, checked, then every rank's feedback. */
 static bool det_phase(sim_t *m, int colour, bool points_only)

@@ -18,6 +18,19 @@
 .DEFAULT_GOAL := all
 SHELL := /bin/sh
 
+# ---- dependencies -------------------------------------------------------------------------
+# Checked (and, as root on Debian, installed) once, before the toolchain is detected below:
+# otherwise the first build on a fresh machine would pick `cc` without MPI and only then
+# install MPI.  build/.deps-ok records that the check passed.
+DEPS_STAMP := build/.deps-ok
+ifeq ($(wildcard $(DEPS_STAMP)),)
+  ifneq ($(filter-out clean,$(or $(MAKECMDGOALS),all)),)
+    ifneq ($(shell sh tools/ensure-deps.sh >&2 && mkdir -p build && touch $(DEPS_STAMP) && echo ok),ok)
+      $(error missing dependencies (see the line above))
+    endif
+  endif
+endif
+
 # ---- toolchain ----------------------------------------------------------------------------
 # CC defaults to the MPI compiler wrapper MPICC: mpicc, or with MPI=mpich Debian's
 # mpicc.mpich (MPI=openmpi: mpicc.openmpi; MPI=none or HAVE_MPI=0: no MPI, CC=cc).  With
@@ -131,11 +144,9 @@ ifneq ($(CLI_SRC),)
   PROGRAMS += $(BINDIR)/i2m
 endif
 
-DEPS_STAMP := build/.deps-ok
-
 # ---- build rules --------------------------------------------------------------------------
 .SECONDARY:
-.PHONY: all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full check-builds bench bench-mpi demo deps clean
+.PHONY: FORCE all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full check-builds bench bench-mpi demo deps clean
 
 all: $(PROGRAMS) $(LIB)
 lib: $(LIB)
@@ -145,7 +156,15 @@ $(DEPS_STAMP):
 	$(Q)sh tools/ensure-deps.sh
 	$(Q)mkdir -p build && touch $@
 
-$(BUILD)/%.o: %.c | $(DEPS_STAMP)
+# the compiler and the flags that change the objects: when they change (MPI installed since,
+# another OPTFLAGS), every object of this build directory is rebuilt
+BUILD_LINE := $(CC) $(CPPFLAGS) $(OPTFLAGS) $(FPFLAGS) $(OMPFLAGS) $(CFLAGS)
+$(BUILD)/.build-line: FORCE | $(DEPS_STAMP)
+	@mkdir -p $(@D)
+	@if [ "$$(cat $@ 2>/dev/null)" != '$(BUILD_LINE)' ]; then echo '$(BUILD_LINE)' > $@; fi
+FORCE:
+
+$(BUILD)/%.o: %.c $(BUILD)/.build-line | $(DEPS_STAMP)
 	@mkdir -p $(@D)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) $(CPPFLAGS) $(ALL_CFLAGS) -c $< -o $@

@@ -893,6 +893,16 @@ static i2m_err_t component_rule(engine_t *E, const i2m_threads_opts_t *to, i2m_t
   return I2M_OK;
 }
 
+/* Rank 0's threads for the coarse mesh.  Meanwhile the other ranks of its node wait asleep, so
+ * it borrows their cores: as many threads as the node's ranks have in all, within the cores
+ * this process may use (none more when the launcher binds it to its own). */
+static int coarse_threads(const i2m_par_t *par, int T)
+{
+  const int avail = i2m_threads_available();
+  const int n = T * par->local_size < avail ? T * par->local_size : avail;
+  return n > T ? n : T;
+}
+
 i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_opts_t *o, i2m_threads_report_t *team,
                           i2m_dist_report_t *rep)
 {
@@ -909,8 +919,11 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
   to.threads = T;
   i2m_err_t err = I2M_OK;
   if (par->rank == 0) {
-    err = i2m_threads_coarse(r, &to, team);
+    i2m_threads_opts_t tc = to;
+    tc.threads = coarse_threads(par, T);
+    err = i2m_threads_coarse(r, &tc, team);
     i2m_threads_report_free(team);
+    if (err == I2M_OK && tc.threads != T) err = i2m_refine_set_workers(r, T);
   } else {
     err = i2m_refine_set_workers(r, T);
     if (err == I2M_OK) err = i2m_refine_octree_begin(r);

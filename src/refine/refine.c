@@ -226,7 +226,14 @@ i2m_err_t i2m_refine_set_workers(i2m_refine_t *r, int n)
   w[0].cap_pend = old->cap_pend;
   old->pend = NULL;
   old->npend = old->cap_pend = 0;
-  w[0].st = old->st;
+  for (int k = 1; k < r->nworkers && err == I2M_OK; k++) /* (the others' lists were handed on: a coarse mesh's team) */
+    if (i2m_refine_backlog(r, k)) err = I2M_ERROR(I2M_ERR_INTERNAL, "fewer workers while worker %d has work", k);
+  if (err != I2M_OK) {
+    for (int k = 0; k < n; k++) worker_free(&w[k]);
+    i2m_free(&w);
+    return err;
+  }
+  i2m_refine_get_stats(r, &w[0].st); /* (every old worker's figures) */
   w[0].progress = old->progress;
   w[0].ctx.n_created = old->ctx.n_created;
   w[0].ctx.n_killed = old->ctx.n_killed;

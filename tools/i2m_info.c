@@ -9,12 +9,14 @@
 static void usage(FILE *f)
 {
   fprintf(f,
-          "usage: i2m-info FILE [--json]\n"
+          "usage: i2m-info FILE [--json] [--allow-external-data]\n"
           "Reads a 3-D label image (NRRD .nrrd/.nhdr, NIfTI-1 .nii/.nii.gz/.hdr, MetaImage\n"
           ".mha/.mhd, Inrimage .inr/.inr.gz) and prints its format, dimensions, voxel type,\n"
           "spacing, origin and direction (world frame LPS, as ITK and 3D Slicer), world\n"
           "bounding box and the voxel count of every label value.\n"
           "  --json   print one JSON object instead of text\n"
+          "  --allow-external-data  a detached header (.nhdr, .mhd) may name a data file outside\n"
+          "           its own directory (refused by default)\n"
           "  --help   print this help\n"
           "Exit status: 0 success, 1 the image cannot be read, 2 bad command line.\n");
 }
@@ -107,12 +109,15 @@ int main(int argc, char **argv)
 {
   const char *file = NULL;
   int json = 0;
+  i2m_image_read_opts_t ro = {false};
   for (int i = 1; i < argc; i++) {
     if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
       usage(stdout);
       return 0;
     } else if (strcmp(argv[i], "--json") == 0) {
       json = 1;
+    } else if (strcmp(argv[i], "--allow-external-data") == 0) {
+      ro.allow_external_data = true;
     } else if (argv[i][0] == '-' && argv[i][1] != '\0') {
       fprintf(stderr, "i2m-info: unknown option %s (try --help)\n", argv[i]);
       return 2;
@@ -129,7 +134,7 @@ int main(int argc, char **argv)
   }
   i2m_image_t *img = NULL;
   i2m_image_format_t fmt;
-  if (i2m_image_read_format(file, &img, &fmt) != I2M_OK) {
+  if (i2m_image_read_with(file, &ro, &img, &fmt) != I2M_OK) {
     fprintf(stderr, "i2m-info: %s\n", i2m_error_message());
     return 1;
   }

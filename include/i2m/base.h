@@ -8,6 +8,7 @@
 #include <stdint.h>
 #include <stdarg.h>
 #include <stdbool.h>
+#include <stdio.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -122,6 +123,39 @@ void i2m_free(void *ptr);
  *  access over hundreds of MB then misses the TLB less often, and first touches fault 2 MB at
  *  a time, which some machines make dearer than it saves. */
 i2m_err_t i2m_realloc_large(size_t n, size_t size, void *ptr);
+
+/* ---- output files ---- */
+
+/** An output file written under a temporary name beside @p path and renamed into place by
+ *  i2m_outfile_commit: a failed or interrupted run never leaves a partial file under the
+ *  final name, and never harms the previous file of that name. */
+typedef struct {
+  FILE *f;    /**< write here (fwrite, fprintf) */
+  char *path; /**< the final name (owned) */
+  char *tmp;  /**< the temporary name (owned) */
+  int slot;   /**< its place in the list of temporaries removed on a signal */
+} i2m_outfile_t;
+/** Opens the temporary with fopen's @p mode ("w" or "wb"). */
+i2m_err_t i2m_outfile_open(i2m_outfile_t *o, const char *path, const char *mode);
+/** Flushes and closes, and renames it into place when every write succeeded; otherwise
+ *  removes the temporary and returns an I/O error naming the file. */
+i2m_err_t i2m_outfile_commit(i2m_outfile_t *o);
+/** Closes and removes the temporary (after a failure elsewhere). */
+void i2m_outfile_abandon(i2m_outfile_t *o);
+/** Programs call this once: SIGINT, SIGTERM and SIGHUP remove the temporaries being written
+ *  before they end the process; SIGXFSZ is ignored (a file-size limit fails the write). */
+void i2m_outfile_signals(void);
+/** True when @p a and @p b name the same file (device and inode; for files not yet there,
+ *  the same name in the same directory). */
+bool i2m_same_file(const char *a, const char *b);
+
+/* ---- JSON ---- */
+
+/** Writes x as a JSON number, or null when it is not finite (JSON has no NaN or infinity). */
+void i2m_json_number(FILE *f, double x);
+/** Writes s as a JSON string: quotes, backslashes and control characters escaped, bytes that
+ *  are not UTF-8 written as U+FFFD.  NULL writes "". */
+void i2m_json_string(FILE *f, const char *s);
 
 /* ---- logging ---- */
 

@@ -65,6 +65,16 @@ typedef enum {
  *  (no shared state; the error message is per thread). */
 i2m_err_t i2m_image_read_format(const char *path, i2m_image_t **out, i2m_image_format_t *format);
 
+/** How to read an image (zero-initialised: the defaults). */
+typedef struct {
+  bool allow_external_data; /**< a detached header (.nhdr, .mhd) may name a data file outside
+                                 its own directory (refused by default) */
+} i2m_image_read_opts_t;
+
+/** i2m_image_read_format() with options (NULL: the defaults). */
+i2m_err_t i2m_image_read_with(const char *path, const i2m_image_read_opts_t *opts, i2m_image_t **out,
+                              i2m_image_format_t *format);
+
 /** Short lower-case name of a format: "nrrd", "nifti", "metaimage", "inr" or "unknown". */
 const char *i2m_image_format_name(i2m_image_format_t format);
 

@@ -77,7 +77,8 @@ static i2m_err_t run_mesher(run_t *r)
 {
   cli_options_t *o = &r->opt;
   phase_begin(r, "reading the image");
-  AGREE(r, i2m_image_read(o->input, &r->img));
+  const i2m_image_read_opts_t ro = {o->allow_external_data != 0};
+  AGREE(r, i2m_image_read_with(o->input, &ro, &r->img, NULL));
   AGREE(r, i2m_refine_params_check(&o->params, r->img));
   phase_end(r, I2M_PHASE_READ);
 
@@ -211,6 +212,7 @@ int main(int argc, char **argv)
     fprintf(stderr, "i2m: %s\n", i2m_error_message());
     return 2;
   }
+  i2m_outfile_signals(); /* (after MPI's initialisation, which may set handlers of its own) */
   run_t r;
   memset(&r, 0, sizeof r);
   r.par = &par;

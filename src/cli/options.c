@@ -4,7 +4,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
+#include "i2m/dt.h"
 #include "i2m/io.h"
 #include "options.h"
 
@@ -37,6 +39,8 @@ void cli_usage(FILE *f)
           "                        out, tets made), for replaying or simulating the run\n"
           "  --seed N              random seed (default 1)\n"
           "  --check               check the triangulation's validity before writing (slow)\n"
+          "  --allow-external-data a detached header (.nhdr, .mhd) may name a data file outside its\n"
+          "                        own directory (refused by default)\n"
           "  --quiet               no progress or summary (errors only); --verbose: more detail\n"
           "  -h, --help            this help\n");
 }
@@ -88,10 +92,13 @@ static i2m_err_t parse_region(const char *s, cli_options_t *o, int *n)
   I2M_CHECK(s, I2M_ERR_ARG, "--region expects X0,Y0,Z0,X1,Y1,Z1:SIZE[:RATIO]");
   i2m_region_t *g = &o->regions[*n];
   double c[6];
-  char tail[64] = "";
+  char tail[256] = "";
   int used = 0;
   int got = sscanf(s, "%lf,%lf,%lf,%lf,%lf,%lf:%n", &c[0], &c[1], &c[2], &c[3], &c[4], &c[5], &used);
   I2M_CHECK(got == 6 && used > 0, I2M_ERR_ARG, "--region expects X0,Y0,Z0,X1,Y1,Z1:SIZE[:RATIO], got '%s'", s);
+  for (int a = 0; a < 6; a++)
+    I2M_CHECK(isfinite(c[a]), I2M_ERR_ARG, "--region %s: the corners must be finite numbers", s);
+  I2M_CHECK(strlen(s + used) < sizeof tail, I2M_ERR_ARG, "--region %s: SIZE[:RATIO] is too long", s);
   snprintf(tail, sizeof tail, "%s", s + used);
   char *colon = strchr(tail, ':');
   g->ratio = o->params.ratio;
@@ -155,9 +162,31 @@ static i2m_err_t parse_valued(const char *opt, const char *val, cli_options_t *o
     o->depth = (int)iv;
   } else if (!strcmp(opt, "--threads")) {
     I2M_CALL(parse_int(opt, val, &iv));
-    I2M_CHECK(iv >= 1 && iv <= 4096, I2M_ERR_ARG, "--threads must be between 1 and 4096 (got %s)", val);
+    I2M_CHECK(iv >= 1 && iv <= I2M_DT_MAX_OWNERS, I2M_ERR_ARG, "--threads must be between 1 and %u (got %s)",
+              I2M_DT_MAX_OWNERS, val);
     o->threads = (int)iv;
   } else return I2M_ERROR(I2M_ERR_ARG, "unknown option '%s' (see i2m --help)", opt);
+  return I2M_OK;
+}
+
+/* The files a run writes are not the input nor one another (compared as files, not as
+ * strings), and the report is JSON: a slip of the keyboard must not replace a segmentation
+ * or a mesh. */
+static i2m_err_t check_paths(const cli_options_t *o)
+{
+  const struct {
+    const char *opt, *path;
+  } f[] = {{"the input", o->input}, {"-o", o->output}, {"--report", o->report}, {"--trace", o->trace}};
+  const size_t n = sizeof f / sizeof *f;
+  for (size_t i = 0; i < n; i++)
+    for (size_t j = i + 1; j < n; j++)
+      I2M_CHECK(!f[i].path || !f[j].path || !i2m_same_file(f[i].path, f[j].path), I2M_ERR_ARG,
+                "%s and %s name the same file (%s)", f[i].opt, f[j].opt, f[j].path);
+  if (o->report) {
+    const size_t len = strlen(o->report);
+    I2M_CHECK(len > 5 && strcasecmp(o->report + len - 5, ".json") == 0, I2M_ERR_ARG,
+              "--report %s: the report is JSON, its name must end in .json", o->report);
+  }
   return I2M_OK;
 }
 
@@ -176,6 +205,7 @@ i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o)
     else if (!strcmp(a, "--check")) o->check = 1;
     else if (!strcmp(a, "--no-pin")) o->no_pin = 1;
     else if (!strcmp(a, "--deterministic")) o->deterministic = 1;
+    else if (!strcmp(a, "--allow-external-data")) o->allow_external_data = 1;
     else if (a[0] == '-' && a[1] != '\0') {
       I2M_CHECK(takes_value(a), I2M_ERR_ARG, "unknown option '%s' (see i2m --help)", a);
       I2M_CHECK(i + 1 < argc, I2M_ERR_ARG, "option %s needs a value (see i2m --help)", a);
@@ -194,5 +224,5 @@ i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o)
   I2M_CHECK(o->input, I2M_ERR_ARG, "no input image given (usage: i2m INPUT -o OUTPUT; see i2m --help)");
   I2M_CHECK(o->output, I2M_ERR_ARG, "no output file given: add -o OUTPUT.vtu, .mesh or .msh");
   I2M_CALL(i2m_mesh_check_writable(o->output));
-  return I2M_OK;
+  return check_paths(o);
 }

@@ -12,6 +12,7 @@ typedef struct {
   i2m_label_size_t label_sizes[I2M_MAX_LIST];
   i2m_region_t regions[I2M_MAX_LIST];
   int quiet, verbose, check, threads, no_pin, deterministic;
+  int allow_external_data; /* --allow-external-data */
   int depth;           /* the octree's depth (0: the default) */
   double coarse_factor;
   double sliver_angle; /* 0: no sliver perturbation */

@@ -853,10 +853,10 @@ static i2m_err_t write_trace(const i2m_par_t *par, const engine_t *E, const char
   if (par->rank == 0) err = i2m_malloc((size_t)total + 1, sizeof *all, &all);
   MPI_Gatherv(E->trace, n * (int)sizeof(trace_t), MPI_BYTE, all, counts, displs, MPI_BYTE, 0, par->comm);
   if (par->rank == 0 && err == I2M_OK) {
-    FILE *f = fopen(path, "w");
-    if (!f) {
-      err = I2M_ERROR(I2M_ERR_IO, "%s: cannot write the trace", path);
-    } else {
+    i2m_outfile_t out;
+    err = i2m_outfile_open(&out, path, "w");
+    if (err == I2M_OK) {
+      FILE *f = out.f;
       fprintf(f, "# rank cell wide start_s end_s bytes_in bytes_out tets_created\n");
       int q = 0;
       for (int i = 0; i < total; i++) {
@@ -865,7 +865,7 @@ static i2m_err_t write_trace(const i2m_par_t *par, const engine_t *E, const char
         fprintf(f, "%d %d %d %.6f %.6f %lld %lld %lld\n", q, t->cell, t->wide, t->start, t->end, (long long)t->bytes_in,
                 (long long)t->bytes_out, (long long)t->created);
       }
-      if (fclose(f) != 0) err = I2M_ERROR(I2M_ERR_IO, "%s: writing the trace failed", path);
+      err = i2m_outfile_commit(&out);
     }
   }
   i2m_free(&all);

@@ -49,6 +49,7 @@ typedef struct {
   size_t head, tail;
   int64_t gz_out;      /* decoded bytes consumed since gzip mode began */
   int eof;             /* no more bytes will come */
+  int allow_external;  /* a detached header may name a data file outside its directory */
 } image_stream_t;
 
 /** Opens @p path for reading; names a missing file, a directory and an empty file in the
@@ -122,7 +123,10 @@ int image_parse_doubles(const char *text, double *v, int n);
 /** Number of white-space separated words in @p text. */
 int image_count_words(const char *text);
 /** Directory part of @p path joined with @p file (unless file is absolute), into out[cap]. */
-i2m_err_t image_sibling_path(const char *path, const char *file, char *out, size_t cap);
+/** The path of a detached header's data file (relative names: to the header's directory).
+ *  Unless @p allow_external, a data file outside the header's directory is refused: a header
+ *  must not make any file on the machine come out as label values. */
+i2m_err_t image_sibling_path(const char *path, const char *file, int allow_external, char *out, size_t cap);
 
 /* ---- format readers: @p s is open at offset 0, in gzip mode when the whole file is
  *      compressed; each reader allocates *out and closes nothing ------------------------- */

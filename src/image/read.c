@@ -2,6 +2,7 @@
  * the first bytes (decompressed first when the file is gzip) and, failing that, from the
  * extension; the reader of that format then does the rest.  Also here: the geometry check
  * (finite positive spacing, orthonormal directions) and small header-text helpers. */
+#define _XOPEN_SOURCE 700 /* realpath */
 #include "image_impl.h"
 
 #include <errno.h>
@@ -88,7 +89,7 @@ int image_parse_doubles(const char *text, double *v, int n)
   return *p == '\0';
 }
 
-i2m_err_t image_sibling_path(const char *path, const char *file, char *out, size_t cap)
+i2m_err_t image_sibling_path(const char *path, const char *file, int allow_external, char *out, size_t cap)
 {
   const char *slash = strrchr(path, '/');
   size_t dir = file[0] == '/' || !slash ? 0 : (size_t)(slash - path) + 1;
@@ -96,6 +97,24 @@ i2m_err_t image_sibling_path(const char *path, const char *file, char *out, size
             path, file);
   memcpy(out, path, dir);
   strcpy(out + dir, file);
+  if (allow_external) return I2M_OK;
+  char header_dir[4096];
+  const size_t n = slash ? (size_t)(slash - path) : 0;
+  I2M_CHECK(n < sizeof header_dir, I2M_ERR_INPUT, "%s: path too long", path);
+  memcpy(header_dir, slash ? path : ".", slash ? n : 1);
+  header_dir[slash ? n : 1] = '\0';
+  if (slash && n == 0) strcpy(header_dir, "/");
+  char *real_dir = realpath(header_dir, NULL), *real_data = realpath(out, NULL);
+  bool inside = true;
+  if (real_dir && real_data) { /* (a data file that is not there fails when it is opened) */
+    const size_t k = strlen(real_dir);
+    inside = strncmp(real_data, real_dir, k) == 0 && (real_data[k] == '/' || (k == 1 && real_dir[0] == '/'));
+  }
+  free(real_dir);
+  free(real_data);
+  I2M_CHECK(inside, I2M_ERR_INPUT,
+            "%s: its data file \"%.200s\" lies outside the header's directory (refused; "
+            "--allow-external-data reads it)", path, file);
   return I2M_OK;
 }
 
@@ -235,7 +254,8 @@ static i2m_err_t read_detected(image_stream_t *s, const char *path, i2m_image_t 
   return I2M_ERROR(I2M_ERR_INTERNAL, "%s: no reader", path);
 }
 
-i2m_err_t i2m_image_read_format(const char *path, i2m_image_t **out, i2m_image_format_t *format)
+i2m_err_t i2m_image_read_with(const char *path, const i2m_image_read_opts_t *opts, i2m_image_t **out,
+                              i2m_image_format_t *format)
 {
   image_stream_t s;
   i2m_image_format_t fmt = I2M_IMAGE_FORMAT_UNKNOWN;
@@ -245,11 +265,17 @@ i2m_err_t i2m_image_read_format(const char *path, i2m_image_t **out, i2m_image_f
   I2M_CHECK(path && path[0], I2M_ERR_ARG, "no image file name given");
   path = pair_header(path, hdr, sizeof hdr);
   i2m_err_t err = image_stream_open(path, &s);
+  s.allow_external = opts && opts->allow_external_data;
   if (err == I2M_OK) err = read_detected(&s, path, out, &fmt);
   image_stream_close(&s);
   if (err != I2M_OK) i2m_image_destroy(out);
   if (format) *format = fmt;
   return err;
+}
+
+i2m_err_t i2m_image_read_format(const char *path, i2m_image_t **out, i2m_image_format_t *format)
+{
+  return i2m_image_read_with(path, NULL, out, format);
 }
 
 i2m_err_t i2m_image_read(const char *path, i2m_image_t **out)

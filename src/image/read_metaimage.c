@@ -161,7 +161,7 @@ static i2m_err_t meta_position(meta_t *m, image_stream_t *s, const char *path, i
               !image_streq(m->data_file, "LIST"), I2M_ERR_UNSUPPORTED,
               "%s: data split over several files (ElementDataFile = %.100s) is not supported",
               path, m->data_file);
-    I2M_CALL(image_sibling_path(path, m->data_file, m->data_path, sizeof m->data_path));
+    I2M_CALL(image_sibling_path(path, m->data_file, s->allow_external, m->data_path, sizeof m->data_path));
     i2m_err_t err = image_stream_open(m->data_path, ds);
     if (err != I2M_OK) {
       char msg[600];

@@ -297,7 +297,7 @@ static i2m_err_t skip_lines(image_stream_t *s, int64_t n)
 }
 
 /* Opens the detached data file into @p ds, or checks that attached data follow the header. */
-static i2m_err_t nrrd_open_data(nrrd_t *h, const char *path, image_stream_t *ds)
+static i2m_err_t nrrd_open_data(nrrd_t *h, const char *path, int allow_external, image_stream_t *ds)
 {
   if (!h->data_file[0]) {
     I2M_CHECK(!h->at_eof, I2M_ERR_INPUT, "%s: no data: the header names no data file and does not "
@@ -307,7 +307,7 @@ static i2m_err_t nrrd_open_data(nrrd_t *h, const char *path, image_stream_t *ds)
   I2M_CHECK(image_count_words(h->data_file) == 1 && strncmp(h->data_file, "LIST", 4) != 0,
             I2M_ERR_UNSUPPORTED, "%s: data split over several files (\"data file: %.100s\") is not "
             "supported", path, h->data_file);
-  I2M_CALL(image_sibling_path(path, h->data_file, h->data_path, sizeof h->data_path));
+  I2M_CALL(image_sibling_path(path, h->data_file, allow_external, h->data_path, sizeof h->data_path));
   i2m_err_t err = image_stream_open(h->data_path, ds);
   if (err != I2M_OK) {
     char msg[600];
@@ -345,7 +345,7 @@ static i2m_err_t nrrd_read(nrrd_t *h, image_stream_t *s, const char *path, image
   I2M_CALL(nrrd_basic(h, path));
   I2M_CALL(nrrd_geometry(h, path, axis, origin));
   for (int c = 0; c < 3; c++) n[c] = h->size[h->ax[c]];
-  I2M_CALL(nrrd_open_data(h, path, ds));
+  I2M_CALL(nrrd_open_data(h, path, s->allow_external, ds));
   image_stream_t *data = h->data_file[0] ? ds : s;
   I2M_CALL(nrrd_position(h, data, n));
   I2M_CALL(image_alloc(path, n, out));

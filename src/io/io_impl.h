@@ -11,7 +11,8 @@
 /** Output file with a large buffer.  The first failure is kept in err (with a message
  *  naming the file); later calls do nothing, so writers check err once per section. */
 typedef struct {
-  FILE *f;          /* owned */
+  i2m_outfile_t out; /* written under a temporary name, renamed into place by io_out_close */
+  FILE *f;          /* out.f */
   const char *path; /* borrowed */
   char *buf;        /* owned: [cap] bytes */
   size_t len, cap;
@@ -20,7 +21,8 @@ typedef struct {
 
 /** Opens @p path for binary writing. */
 i2m_err_t io_out_open(io_out_t *o, const char *path);
-/** Flushes and closes; returns the first error met (and removes a partial file on error). */
+/** Flushes and closes; returns the first error met.  The file appears under its name only
+ *  when everything was written; on error the previous file of that name is untouched. */
 i2m_err_t io_out_close(io_out_t *o);
 /** Writes the buffer to the file. */
 void io_out_flush(io_out_t *o);

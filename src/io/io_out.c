@@ -18,12 +18,12 @@ i2m_err_t io_out_open(io_out_t *o, const char *path)
   o->path = path;
   I2M_CALL(i2m_malloc(IO_BUF_BYTES, 1, &o->buf));
   o->cap = IO_BUF_BYTES;
-  o->f = fopen(path, "wb");
-  if (!o->f) {
-    int e = errno;
+  i2m_err_t err = i2m_outfile_open(&o->out, path, "wb");
+  if (err != I2M_OK) {
     i2m_free(&o->buf);
-    return I2M_ERROR(I2M_ERR_IO, "%s: cannot open for writing: %s", path, strerror(e));
+    return err;
   }
+  o->f = o->out.f;
   return I2M_OK;
 }
 
@@ -83,17 +83,10 @@ i2m_err_t io_out_close(io_out_t *o)
 {
   if (!o->f) return o->err;
   io_out_flush(o);
-  if (o->err == I2M_OK && fflush(o->f) != 0) {
-    int e = errno;
-    o->err = I2M_ERROR(I2M_ERR_IO, "%s: write failed: %s", o->path, strerror(e));
-  }
-  if (fclose(o->f) != 0 && o->err == I2M_OK) {
-    int e = errno;
-    o->err = I2M_ERROR(I2M_ERR_IO, "%s: closing failed: %s", o->path, strerror(e));
-  }
+  if (o->err == I2M_OK) o->err = i2m_outfile_commit(&o->out);
+  else i2m_outfile_abandon(&o->out);
   o->f = NULL;
   i2m_free(&o->buf);
-  if (o->err != I2M_OK) remove(o->path); /* never leave a truncated mesh behind */
   return o->err;
 }
 

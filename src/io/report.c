@@ -96,49 +96,52 @@ void i2m_report_print(FILE *f, const i2m_report_t *r)
 
 /* ---- JSON ---- */
 
-static void json_num(FILE *f, double x)
+
+static void json_vec3(FILE *f, const double x[3])
 {
-  if (isfinite(x)) fprintf(f, "%.10g", x);
-  else fprintf(f, "null");
+  for (int a = 0; a < 3; a++) {
+    fputs(a ? ", " : "[", f);
+    i2m_json_number(f, x[a]);
+  }
+  fputc(']', f);
 }
 
-static void json_str(FILE *f, const char *s)
+/* "key": x, (null when not finite) */
+static void json_field(FILE *f, const char *key, double x)
 {
-  fputc('"', f);
-  for (; s && *s; s++) {
-    unsigned char c = (unsigned char)*s;
-    if (c == '"' || c == '\\') fprintf(f, "\\%c", c);
-    else if (c < 0x20) fprintf(f, "\\u%04x", c);
-    else fputc(c, f);
-  }
-  fputc('"', f);
+  fprintf(f, "\"%s\": ", key);
+  i2m_json_number(f, x);
+  fputs(", ", f);
 }
 
 static void json_params(FILE *f, const i2m_report_t *r)
 {
   const i2m_refine_params_t *p = r->params;
   fprintf(f, "  \"parameters\": {\"delta\": ");
-  json_num(f, p->delta);
+  i2m_json_number(f, p->delta);
   fprintf(f, ", \"ratio\": ");
-  json_num(f, p->ratio);
+  i2m_json_number(f, p->ratio);
   fprintf(f, ", \"facet_angle\": ");
-  json_num(f, p->facet_angle);
+  i2m_json_number(f, p->facet_angle);
   fprintf(f, ", \"size\": ");
-  json_num(f, p->size);
+  i2m_json_number(f, p->size);
   fprintf(f, ", \"size_labels\": [");
   for (int k = 0; k < p->nlabel_sizes; k++) {
     fprintf(f, "%s{\"label\": %lld, \"size\": ", k ? ", " : "", (long long)p->label_sizes[k].value);
-    json_num(f, p->label_sizes[k].size);
+    i2m_json_number(f, p->label_sizes[k].size);
     fprintf(f, "}");
   }
   fprintf(f, "], \"regions\": [");
   for (int k = 0; k < p->nregions; k++) {
     const i2m_region_t *g = &p->regions[k];
-    fprintf(f, "%s{\"lo\": [%.10g, %.10g, %.10g], \"hi\": [%.10g, %.10g, %.10g], \"size\": ", k ? ", " : "", g->lo[0],
-            g->lo[1], g->lo[2], g->hi[0], g->hi[1], g->hi[2]);
-    json_num(f, g->size);
+    fprintf(f, "%s{\"lo\": ", k ? ", " : "");
+    json_vec3(f, g->lo);
+    fprintf(f, ", \"hi\": ");
+    json_vec3(f, g->hi);
+    fprintf(f, ", \"size\": ");
+    i2m_json_number(f, g->size);
     fprintf(f, ", \"ratio\": ");
-    json_num(f, g->ratio);
+    i2m_json_number(f, g->ratio);
     fprintf(f, "}");
   }
   fprintf(f, "], \"threads\": %d, \"ranks\": %d},\n", r->threads, r->ranks);
@@ -156,10 +159,13 @@ static const i2m_label_pieces_t *pieces_of(const i2m_report_t *r, int64_t value)
 static void json_quality(FILE *f, const i2m_report_t *r)
 {
   const i2m_quality_t *q = r->quality;
-  fprintf(f, "  \"quality\": {\"min_dihedral\": %.6g, \"max_dihedral\": %.6g, \"max_radius_edge\": %.6g, ",
-          q->min_dihedral, q->max_dihedral, q->max_radius_edge);
-  fprintf(f, "\"tets_above_ratio\": %lld, \"min_facet_angle\": %.6g, \"facets_below_angle\": %lld, ",
-          (long long)q->n_ratio_above, q->min_facet_angle, (long long)q->n_facet_below);
+  fprintf(f, "  \"quality\": {");
+  json_field(f, "min_dihedral", q->min_dihedral);
+  json_field(f, "max_dihedral", q->max_dihedral);
+  json_field(f, "max_radius_edge", q->max_radius_edge);
+  fprintf(f, "\"tets_above_ratio\": %lld, ", (long long)q->n_ratio_above);
+  json_field(f, "min_facet_angle", q->min_facet_angle);
+  fprintf(f, "\"facets_below_angle\": %lld, ", (long long)q->n_facet_below);
   fprintf(f, "\"facets_below_angle_at_junctions\": %lld, \"dihedral_histogram\": [", (long long)q->n_facet_below_junction);
   for (int k = 0; k < 180; k++) fprintf(f, "%s%lld", k ? ", " : "", (long long)q->dihedral_hist[k]);
   fprintf(f, "]},\n  \"labels\": [");
@@ -204,12 +210,13 @@ static void json_dist(FILE *f, const i2m_report_t *r)
 
 i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
 {
-  FILE *f = fopen(path, "w");
-  I2M_CHECK(f, I2M_ERR_IO, "%s: cannot write the report: %s", path, strerror(errno));
+  i2m_outfile_t out;
+  I2M_CALL(i2m_outfile_open(&out, path, "w"));
+  FILE *f = out.f;
   fprintf(f, "{\n  \"input\": ");
-  json_str(f, r->input);
+  i2m_json_string(f, r->input);
   fprintf(f, ",\n  \"output\": ");
-  json_str(f, r->output);
+  i2m_json_string(f, r->output);
   fprintf(f, ",\n");
   json_params(f, r);
   fprintf(f, "  \"counts\": {\"vertices\": %lld, \"tetrahedra\": %lld, \"interface_triangles\": %lld, \"working_tetrahedra\": %lld, \"checksum\": \"%016llx\"},\n",
@@ -231,10 +238,11 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
           (long long)s->rule[5], (long long)s->rule[6], (long long)s->rule[7], (long long)s->bridges);
   if (r->sliver_angle > 0) {
     const i2m_sliver_stats_t *v = &r->slivers;
-    fprintf(f, "  \"slivers\": {\"angle\": %.6g, \"before\": %lld, \"after\": %lld, \"min_dihedral_before\": %.6g, "
-               "\"min_dihedral_after\": %.6g, \"moves_tried\": %lld, \"moves_kept\": %lld},\n",
-            r->sliver_angle, (long long)v->slivers_before, (long long)v->slivers_after, v->min_before, v->min_after,
-            (long long)v->tried, (long long)v->kept);
+    fprintf(f, "  \"slivers\": {\"angle\": %.6g, \"before\": %lld, \"after\": %lld, ", r->sliver_angle,
+            (long long)v->slivers_before, (long long)v->slivers_after);
+    json_field(f, "min_dihedral_before", v->min_before);
+    json_field(f, "min_dihedral_after", v->min_after);
+    fprintf(f, "\"moves_tried\": %lld, \"moves_kept\": %lld},\n", (long long)v->tried, (long long)v->kept);
   }
   fprintf(f, "  \"time_seconds\": {");
   for (int p = 0; p < I2M_NPHASES; p++) fprintf(f, "\"%s\": %.4f, ", i2m_phase_name(p), r->phase_seconds[p]);
@@ -246,7 +254,7 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
   if (r->team) {
     const i2m_threads_report_t *t = r->team;
     fprintf(f, "  \"threads\": {\"count\": %d, \"pinned\": %s, \"binding\": ", t->threads, t->pinned ? "true" : "false");
-    json_str(f, t->binding);
+    i2m_json_string(f, t->binding);
     fprintf(f, ", \"capacity_pauses\": %lld, \"coarse_seconds\": %.4f, \"fine_seconds\": %.4f, ", (long long)t->pauses,
             t->coarse_seconds, t->fine_seconds);
     fprintf(f, "\"deterministic\": %s, \"depth\": %d, \"tile_mm\": %.4g, \"phases\": %lld, \"rounds\": %lld, \"sequential_ops\": %lld, ",
@@ -267,8 +275,5 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
   if (r->dist) json_dist(f, r);
   if (r->quality) json_quality(f, r);
   fprintf(f, "  \"version\": \"i2m 0.1\"\n}\n");
-  int bad = ferror(f);
-  bad |= fclose(f) != 0;
-  I2M_CHECK(!bad, I2M_ERR_IO, "%s: writing the report failed: %s", path, strerror(errno));
-  return I2M_OK;
+  return i2m_outfile_commit(&out);
 }

@@ -33,9 +33,9 @@ static i2m_err_t write_pvtu(const char *path, int pieces, int wide)
                 "      <PDataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"/>\n"
                 "    </PPoints>\n",
                 wide ? "Int64" : "Int32");
-  for (int q = 0; q < pieces; q++) {
+  for (int q = 0; q < pieces && o.err == I2M_OK; q++) {
     char p[4096], src[4096];
-    I2M_CALL(piece_names(path, q, p, sizeof p, src, sizeof src));
+    o.err = piece_names(path, q, p, sizeof p, src, sizeof src);
     io_out_printf(&o, "    <Piece Source=\"%s\"/>\n", src);
   }
   io_out_printf(&o, "  </PUnstructuredGrid>\n</VTKFile>\n");

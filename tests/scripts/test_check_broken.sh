@@ -67,6 +67,13 @@ printf 'MeshVersionFormatted 2\nDimension 3\nTetra\033[2J\001\n3\n' > "$T/ctrl.m
 sed 's/^1 2 3 4 7$/1 2 3 4 0/' "$T/corner.mesh" > "$T/corner0.mesh"
 # the corner tet with its apex 50 m away: each huge triangle gets a bounded number of samples
 sed 's/^0 0 1 0$/0 0 50000 0/' "$T/corner.mesh" > "$T/far.mesh"
+# the corner tet at extreme magnitudes: scaled to 1e200 (exact orientation and the figures
+# must not overflow) and moved to 1e16 (where a unit step is below a double's resolution
+# of the coordinates, 2: here the tet is 4e16 wide)
+awk '/^[01] [01] [01] 0$/ { printf "%.17g %.17g %.17g 0\n", $1 * 1e200, $2 * 1e200, $3 * 1e200; next } { print }' \
+  "$T/corner.mesh" > "$T/huge.mesh"
+awk '/^[01] [01] [01] 0$/ { printf "%.17g %.17g %.17g 0\n", 1e16 + $1 * 4e16, 1e16 + $2 * 4e16, 1e16 + $3 * 4e16; next } { print }' \
+  "$T/corner.mesh" > "$T/far16.mesh"
 # Gmsh 4.1 ASCII corner tet from its sections (F format, E entities, N nodes, L elements);
 # a section twice would be read over the first one's arrays; out of order, labels go wrong
 gmsh() {
@@ -138,6 +145,9 @@ run_all() {
   ck=$1
   expect "$ck" cube.mesh 0 "v['valid'] and abs(v['total_volume'] - 1) < 1e-12 and v['boundary_faces'] == 12 and v['interior_faces'] == 6 and v['boundary_closed'] and v['interface_pairs'] == 3"
   expect "$ck" corner.mesh 0 "v['valid'] and abs(v['total_volume'] - 1/6) < 1e-15 and abs(q['min_dihedral'] - math.degrees(math.acos(1/math.sqrt(3)))) < 1e-9 and abs(q['max_dihedral'] - 90) < 1e-9 and q['dihedral_histogram'][89] + q['dihedral_histogram'][90] == 3 and q['dihedral_histogram'][54] == 3 and abs(q['max_radius_edge'] - math.sqrt(3)/2) < 1e-12 and abs(q['min_planar_angle'] - 45) < 1e-9 and v['file_triangles_flipped'] == 0"
+  for f in huge.mesh far16.mesh; do
+    expect "$ck" $f 0 "v['valid'] and abs(q['min_dihedral'] - math.degrees(math.acos(1/math.sqrt(3)))) < 1e-9 and abs(q['max_dihedral'] - 90) < 1e-9 and abs(q['max_radius_edge'] - math.sqrt(3)/2) < 1e-12 and abs(q['min_planar_angle'] - 45) < 1e-9" --max-ratio 2 --min-facet-angle 30
+  done
   expect "$ck" inverted.mesh 1 "'inverted' in v['errors'] and v['inverted'] == 1 and v['first_inverted_tet'] == 0"
   expect "$ck" shared3.mesh 1 "'nonmanifold_face' in v['errors'] and v['nonmanifold_faces'] == 1"
   expect "$ck" dangling.mesh 1 "v['errors'] == ['dangling_vertex'] and v['first_dangling_vertex'] == 8"

@@ -84,6 +84,10 @@ headersize.mhd|HeaderSize 500 goes past the end
 nan.nrrd|NaN
 shear.nrrd|sheared
 nodata.nhdr|No such file
+h/outside.nhdr|outside the header's directory
+h/passwd.nhdr|outside the header's directory
+h/link.nhdr|outside the header's directory
+h/outside.mhd|outside the header's directory
 empty.nii|empty file
 dir.nrrd|is a directory
 missing.nrrd|No such file or directory
@@ -91,6 +95,20 @@ garbage.nrrd|not a NRRD file
 garbage.bin|unknown image format
 garbage.nii|not a NIfTI-1 file
 garbage.mha|not a MetaImage file"
+
+# detached headers whose data file lies outside their directory: relative, absolute, through
+# a symbolic link (a header must not turn any file on the machine into label values)
+mkdir -p "$T/h/d"
+mk --dims 6,5,4 -o "$T/h/ok.nhdr"
+mv "$T/h/ok.raw" "$T/secret.raw"
+sed 's|^data file: .*|data file: ../secret.raw|' "$T/h/ok.nhdr" >"$T/h/outside.nhdr"
+sed 's|^data file: .*|data file: /etc/passwd|' "$T/h/ok.nhdr" >"$T/h/passwd.nhdr"
+ln -s ../secret.raw "$T/h/link.raw"
+sed 's|^data file: .*|data file: link.raw|' "$T/h/ok.nhdr" >"$T/h/link.nhdr"
+cp "$T/secret.raw" "$T/h/d/inside.raw"
+sed 's|^data file: .*|data file: d/inside.raw|' "$T/h/ok.nhdr" >"$T/h/inside.nhdr"
+mk --dims 6,5,4 -o "$T/h/okm.mhd"
+sed 's|^ElementDataFile = .*|ElementDataFile = ../secret.raw|' "$T/h/okm.mhd" >"$T/h/outside.mhd"
 
 check() { # check INFO FILE WORD
   info=$1; file=$2; word=$3
@@ -123,9 +141,15 @@ for info in "$BIN/i2m-info" "$ASAN_BIN/i2m-info"; do
     check "$info" "$file" "$word"
     [ $fail = 0 ] || exit 1
   done || fail=1
+  "$info" "$T/h/inside.nhdr" >/dev/null || { echo "FAIL $info: a data file in a subdirectory of the header's was refused"; fail=1; }
   # a good file still reads (guards against a reader that fails on everything)
   "$MK" --shape two-balls --dims 30,20,10 --gzip -o "$T/good.nrrd" && "$info" "$T/good.nrrd" >/dev/null ||
     { echo "FAIL $info: good.nrrd not read"; fail=1; }
 done
+# --allow-external-data reads what is refused by default
+if [ -x "$BIN/i2m" ]; then
+  if "$BIN/i2m" "$T/h/outside.nhdr" -o "$T/ext.vtu" --quiet --allow-external-data; then echo "ok   --allow-external-data reads h/outside.nhdr"
+  else echo "FAIL i2m --allow-external-data h/outside.nhdr"; fail=1; fi
+fi
 [ $fail = 0 ] && echo "test_image_errors: all passed"
 exit $fail

@@ -216,6 +216,10 @@ i2m_err_t ck_plot(const char *dir, const ck_mesh_t *m, const ck_quality_t *q,
 /* ---- geometry (ck_geom.c) ---- */
 /** Exact sign of det[b-a; c-a; d-a]. */
 int ck_orient3d(const double a[3], const double b[3], const double c[3], const double d[3]);
+/** The tet moved to its first vertex and scaled by a power of two to a size near 1: figures
+ *  that do not depend on position and scale (angles, radius-edge ratio) computed from these
+ *  neither overflow nor lose precision at any coordinates. */
+void ck_tet_normalized(const double *p[4], double q[4][3]);
 double ck_volume6(const double a[3], const double b[3], const double c[3], const double d[3]);
 /** Squared distance from p to triangle abc. */
 double ck_dist2_point_triangle(const double p[3], const double a[3], const double b[3],

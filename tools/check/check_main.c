@@ -14,6 +14,8 @@ static const char *USAGE =
     "  MESH                 .vtu, .mesh (Medit) or .msh (Gmsh 4.1) file, or a .pvtu: its\n"
     "                       pieces stitched by GlobalNodeId, the seams checked\n"
     "  --image IMAGE        label image for fidelity figures (NRRD, NIfTI, MetaImage, INR)\n"
+    "  --allow-external-data  the image's detached header may name a data file outside its\n"
+    "                       directory (refused by default)\n"
     "  --json               print one JSON object instead of the summary\n"
     "  --no-distances       with --image: volumes, labels and components only (no interface\n"
     "                       distances: seconds instead of a minute on large meshes)\n"
@@ -49,7 +51,7 @@ static int parse_num(const char *s, double *v)
 
 typedef struct {
   const char *mesh, *image, *plot;
-  int json, no_distances;
+  int json, no_distances, allow_external_data;
 } opts_t;
 
 static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
@@ -73,6 +75,10 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
     }
     if (strcmp(a, "--no-distances") == 0) {
       o->no_distances = 1;
+      continue;
+    }
+    if (strcmp(a, "--allow-external-data") == 0) {
+      o->allow_external_data = 1;
       continue;
     }
     if (a[0] == '-' && a[1] == '-') {
@@ -185,7 +191,8 @@ static int run(const opts_t *o, ck_result_t *r)
     fprintf(stderr, "i2m-check: %s\n", i2m_error_message());
     return 2;
   }
-  if (o->image && i2m_image_read(o->image, &img) != I2M_OK) {
+  const i2m_image_read_opts_t ro = {o->allow_external_data != 0};
+  if (o->image && i2m_image_read_with(o->image, &ro, &img, NULL) != I2M_OK) {
     fprintf(stderr, "i2m-check: %s\n", i2m_error_message());
     goto done;
   }
@@ -240,6 +247,7 @@ int main(int argc, char **argv)
   opts_t o;
   ck_result_t r;
   i2m_malloc_tune();
+  i2m_outfile_signals();
   memset(&r, 0, sizeof r);
   int c = parse_args(argc, argv, &o, &r);
   if (c >= 0) return c;

@@ -129,8 +129,30 @@ double ck_volume6(const double a[3], const double b[3], const double c[3], const
          u[2] * (v[0] * w[1] - v[1] * w[0]);
 }
 
+/* The largest magnitude of the four points' coordinates. */
+static double max_coordinate(const double *p[4])
+{
+  double m = 0;
+  for (int i = 0; i < 4; i++)
+    for (int k = 0; k < 3; k++) m = fmax(m, fabs(p[i][k]));
+  return m;
+}
+
+/* Far from 1 (products of three coordinates would overflow or underflow): the points are
+ * scaled by a power of two, which is exact and keeps the sign of the determinant. */
+#define ORIENT_RANGE 0x1p250
+
 int ck_orient3d(const double a[3], const double b[3], const double c[3], const double d[3])
 {
+  const double *pts[4] = {a, b, c, d};
+  const double big = max_coordinate(pts);
+  if (isfinite(big) && (big > ORIENT_RANGE || (big > 0 && big < 1.0 / ORIENT_RANGE))) {
+    const int e = ilogb(big);
+    double q[4][3];
+    for (int i = 0; i < 4; i++)
+      for (int k = 0; k < 3; k++) q[i][k] = ldexp(pts[i][k], -e);
+    return ck_orient3d(q[0], q[1], q[2], q[3]);
+  }
   double u[3], v[3], w[3];
   for (int k = 0; k < 3; k++) {
     u[k] = b[k] - a[k];
@@ -147,6 +169,16 @@ int ck_orient3d(const double a[3], const double b[3], const double c[3], const d
   if (-det > bound) return -1;
   if (!isfinite(det)) return 0;
   return exact_orient(a, b, c, d);
+}
+
+void ck_tet_normalized(const double *p[4], double q[4][3])
+{
+  double m = 0;
+  for (int i = 1; i < 4; i++)
+    for (int k = 0; k < 3; k++) m = fmax(m, fabs(p[i][k] - p[0][k]));
+  const int e = m > 0 && isfinite(m) ? ilogb(m) : 0;
+  for (int i = 0; i < 4; i++)
+    for (int k = 0; k < 3; k++) q[i][k] = ldexp(p[i][k] - p[0][k], -e);
 }
 
 static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
@@ -237,7 +269,10 @@ int ck_circumcentre(const double p0[3], const double p1[3], const double p2[3], 
 
 double ck_min_angle_deg(const double a[3], const double b[3], const double c[3])
 {
-  const double *v[3] = {a, b, c};
+  const double *t[4] = {a, b, c, c};
+  double n[4][3];
+  ck_tet_normalized(t, n); /* (the triangle as a flat tet: angles at any magnitude) */
+  const double *v[3] = {n[0], n[1], n[2]};
   double m = 180.0;
   for (int i = 0; i < 3; i++) {
     const double *o = v[i], *p = v[(i + 1) % 3], *q = v[(i + 2) % 3];

@@ -24,18 +24,26 @@ typedef struct {
   int n, cap;
 } ctable_t;
 
-static i2m_err_t svg_close(FILE *f, const char *path)
+/* Writes s as XML character data: the five special characters as entities, control bytes
+ * dropped (a colour table's names are anybody's text). */
+static void svg_text(FILE *f, const char *s)
 {
-  int bad = ferror(f);
-  if (fclose(f) != 0 || bad)
-    return I2M_ERROR(I2M_ERR_IO, "%s: write failed: %s", path, strerror(errno));
-  return I2M_OK;
+  for (; *s; s++) {
+    const unsigned char c = (unsigned char)*s;
+    if (c == '<') fputs("&lt;", f);
+    else if (c == '>') fputs("&gt;", f);
+    else if (c == '&') fputs("&amp;", f);
+    else if (c == '"') fputs("&quot;", f);
+    else if (c == '\'') fputs("&apos;", f);
+    else if (c >= 0x20 && c != 0x7f) fputc(c, f);
+  }
 }
 
 static i2m_err_t plot_histogram(const char *path, const ck_quality_t *q)
 {
-  FILE *f = fopen(path, "w");
-  if (!f) return I2M_ERROR(I2M_ERR_IO, "%s: cannot open for writing: %s", path, strerror(errno));
+  i2m_outfile_t out;
+  I2M_CALL(i2m_outfile_open(&out, path, "w"));
+  FILE *f = out.f;
   const double W = 900, H = 420, x0 = 70, y0 = 360, pw = 800, ph = 320;
   int64_t maxc = 1;
   for (int b = 0; b < CK_HIST_BINS; b++)
@@ -75,7 +83,7 @@ static i2m_err_t plot_histogram(const char *path, const ck_quality_t *q)
             x + (i ? -4 : 4), y0 - ph + 14 + 16 * i, i ? "end" : "start", nm[i], mk[i]);
   }
   fprintf(f, "</svg>\n");
-  return svg_close(f, path);
+  return i2m_outfile_commit(&out);
 }
 
 /* ---- colours ---- */
@@ -188,8 +196,9 @@ static void legend(FILE *f, const ctable_t *ct, int64_t *labs, int64_t n, double
     const color_t *c = ctable_find(ct, labs[i]);
     fprintf(f, "<rect x=\"%g\" y=\"%g\" width=\"12\" height=\"12\" fill=\"rgb(%d,%d,%d)\" "
                "stroke=\"black\" stroke-width=\"0.5\"/>\n", x, y + 16 * row, rgb[0], rgb[1], rgb[2]);
-    fprintf(f, "<text x=\"%g\" y=\"%g\">%lld%s%s</text>\n", x + 18, y + 16 * row + 11,
-            (long long)labs[i], c ? " " : "", c ? c->name : "");
+    fprintf(f, "<text x=\"%g\" y=\"%g\">%lld%s", x + 18, y + 16 * row + 11, (long long)labs[i], c ? " " : "");
+    svg_text(f, c ? c->name : "");
+    fprintf(f, "</text>\n");
     row++;
   }
 }
@@ -223,14 +232,14 @@ static i2m_err_t plot_section(const char *path, const ck_mesh_t *m, const i2m_im
   double ext = fmax(hi[0] - lo[0], hi[1] - lo[1]);
   double sc = ext > 0 ? 800.0 / ext : 1.0, W = (hi[0] - lo[0]) * sc + 340, H = fmax((hi[1] - lo[1]) * sc, 400) + 60;
   i2m_err_t err = i2m_malloc((size_t)m->nt, sizeof *labs, &labs);
-  FILE *f = err == I2M_OK ? fopen(path, "w") : NULL;
-  if (err == I2M_OK && !f)
-    err = I2M_ERROR(I2M_ERR_IO, "%s: cannot open for writing: %s", path, strerror(errno));
+  i2m_outfile_t out;
+  if (err == I2M_OK) err = i2m_outfile_open(&out, path, "w");
   if (err != I2M_OK) {
     i2m_free(&g);
     i2m_free(&labs);
     return err;
   }
+  FILE *f = out.f;
   ctable_load(image_path, &ct);
   fprintf(f, "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" height=\"%.0f\" "
              "font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%%\" height=\"100%%\" "
@@ -255,7 +264,7 @@ static i2m_err_t plot_section(const char *path, const ck_mesh_t *m, const i2m_im
   fprintf(f, "</g>\n");
   legend(f, &ct, labs, nl, (hi[0] - lo[0]) * sc + 30, 40);
   fprintf(f, "</svg>\n");
-  err = svg_close(f, path);
+  err = i2m_outfile_commit(&out);
   i2m_free(&ct.c);
   i2m_free(&g);
   i2m_free(&labs);

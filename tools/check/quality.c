@@ -72,6 +72,9 @@ static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
   for (int64_t t = 0; t < m->nt; t++) {
     const double *p[4];
     for (int i = 0; i < 4; i++) p[i] = m->xyz + 3 * m->tet[4 * t + i];
+    double q4[4][3];
+    ck_tet_normalized(p, q4);
+    for (int i = 0; i < 4; i++) p[i] = q4[i];
     double ang[6], lo = 180.0, hi = 0.0;
     if (!dihedrals(p, ang)) {
       ang[0] = ang[1] = ang[2] = 0.0;
@@ -84,7 +87,7 @@ static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
       if (ang[e] < lo) lo = ang[e];
       if (ang[e] > hi) hi = ang[e];
     }
-    for (int k = 0; k < 3; k++) q->dihedral_below[k] += lo < below[k];
+    for (int k = 0; k < 3; k++) q->dihedral_below[k] += !(lo >= below[k]); /* (NaN counts as below) */
     if (lo < q->min_dihedral || q->min_dihedral_tet < 0) {
       q->min_dihedral = lo;
       q->min_dihedral_tet = t;
@@ -94,12 +97,12 @@ static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
       q->max_dihedral_tet = t;
     }
     ratio[t] = radius_edge(p);
-    if (q->max_ratio_tet < 0 || ratio[t] > q->max_ratio) {
+    if (q->max_ratio_tet < 0 || ratio[t] > q->max_ratio || (isnan(ratio[t]) && !isnan(q->max_ratio))) {
       q->max_ratio = ratio[t];
       q->max_ratio_tet = t;
     }
-    if (ratio[t] > q->ratio_bound) q->ratio_above_bound++;
-    if (ratio[t] > 2.0) q->ratio_above_2++;
+    if (!(ratio[t] <= q->ratio_bound)) q->ratio_above_bound++; /* (a NaN figure fails every bound) */
+    if (!(ratio[t] <= 2.0)) q->ratio_above_2++;
     if (isfinite(ratio[t])) {
       sum += ratio[t];
       nfin++;
@@ -133,8 +136,8 @@ i2m_err_t ck_quality(const ck_mesh_t *m, const ck_topo_t *topo, double ratio_bou
       q->min_planar_angle = a;
       q->min_planar_tri = i;
     }
-    q->planar_below_30 += a < 30.0;
-    q->planar_below_bound += a < facet_bound;
+    q->planar_below_30 += !(a >= 30.0);
+    q->planar_below_bound += !(a >= facet_bound);
   }
   return I2M_OK;
 }

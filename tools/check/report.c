@@ -9,34 +9,13 @@
 #include <string.h>
 
 /* ---- JSON helpers ---- */
-static void jnum(FILE *f, double x)
-{
-  if (isfinite(x))
-    fprintf(f, "%.17g", x);
-  else
-    fprintf(f, "null");
-}
-
-static void jstr(FILE *f, const char *s)
-{
-  fputc('"', f);
-  for (; *s; s++) {
-    if (*s == '"' || *s == '\\')
-      fprintf(f, "\\%c", *s);
-    else if ((unsigned char)*s < 0x20)
-      fprintf(f, "\\u%04x", (unsigned char)*s);
-    else
-      fputc(*s, f);
-  }
-  fputc('"', f);
-}
 
 #define JI(f, key, v, last) fprintf(f, "\"%s\": %lld%s", key, (long long)(v), (last) ? "" : ", ")
 #define JB(f, key, v, last) fprintf(f, "\"%s\": %s%s", key, (v) ? "true" : "false", (last) ? "" : ", ")
 static void JD(FILE *f, const char *key, double v, int last)
 {
   fprintf(f, "\"%s\": ", key);
-  jnum(f, v);
+  i2m_json_number(f, v);
   if (!last) fprintf(f, ", ");
 }
 
@@ -135,11 +114,11 @@ static void json_dist(FILE *f, const char *key, const ck_dist_t *d, double sp, i
   JD(f, "mean_vox", d->mean / sp, 0);
   JI(f, "count", d->count, 0);
   fprintf(f, "\"where\": [");
-  jnum(f, d->where[0]);
+  i2m_json_number(f, d->where[0]);
   fprintf(f, ", ");
-  jnum(f, d->where[1]);
+  i2m_json_number(f, d->where[1]);
   fprintf(f, ", ");
-  jnum(f, d->where[2]);
+  i2m_json_number(f, d->where[2]);
   fprintf(f, "]}%s", last ? "" : ", ");
 }
 
@@ -212,7 +191,7 @@ static void json_stitch(FILE *f, const ck_stitch_t *st, const ck_mesh_t *m)
   fprintf(f, "\"stitch\": {\"pieces\": [");
   for (int p = 0; p < st->npieces; p++) {
     fprintf(f, "%s{\"path\": ", p ? ", " : "");
-    jstr(f, st->piece_path[p]);
+    i2m_json_string(f, st->piece_path[p]);
     fprintf(f, ", ");
     JI(f, "vertices", st->piece_nv[p], 0);
     JI(f, "tetrahedra", st->tet_start[p + 1] - st->tet_start[p], 0);
@@ -232,7 +211,7 @@ static void json_stitch(FILE *f, const ck_stitch_t *st, const ck_mesh_t *m)
   fprintf(f, "\"errors\": [");
   for (int i = 0; i < ne; i++) {
     fprintf(f, "%s", i ? ", " : "");
-    jstr(f, e[i].first);
+    i2m_json_string(f, e[i].first);
   }
   fprintf(f, "]}");
 }
@@ -241,7 +220,7 @@ void ck_report_json(FILE *f, const ck_result_t *r)
 {
   const ck_mesh_t *m = r->mesh;
   fprintf(f, "{\"mesh\": {\"path\": ");
-  jstr(f, r->mesh_path);
+  i2m_json_string(f, r->mesh_path);
   fprintf(f, ", \"format\": \"%s\", ", m->format);
   JI(f, "vertices", m->nv, 0);
   JI(f, "tetrahedra", m->nt, 0);
@@ -255,7 +234,7 @@ void ck_report_json(FILE *f, const ck_result_t *r)
     fprintf(f, "\"stitch\": null");
   fprintf(f, ", \"image\": ");
   if (r->image_path)
-    jstr(f, r->image_path);
+    i2m_json_string(f, r->image_path);
   else
     fprintf(f, "null");
   fprintf(f, ", ");
@@ -287,7 +266,7 @@ void ck_report_json(FILE *f, const ck_result_t *r)
   fprintf(f, "\"violations\": [");
   for (int i = 0; i < r->nviol; i++) {
     if (i) fprintf(f, ", ");
-    jstr(f, r->viol[i]);
+    i2m_json_string(f, r->viol[i]);
   }
   fprintf(f, "], \"timings\": {");
   JD(f, "read", r->t_read, 0);

@@ -1,0 +1,157 @@
+/* Base layer: output files that appear whole or not at all.
+ *
+ * A file is written under a temporary name beside its final one (same directory, so the
+ * rename cannot cross file systems) and renamed over it only once everything was written,
+ * flushed and closed.  On failure the temporary goes and the previous file of that name is
+ * untouched.  The temporaries being written are listed in a fixed table that a handler for
+ * SIGINT, SIGTERM and SIGHUP empties (unlink is async-signal-safe) before the signal's
+ * default action ends the process.  SIGXFSZ is ignored, so that a file-size limit is a
+ * failed write with a message, not a killed process. */
+#define _POSIX_C_SOURCE 200809L
+#include "i2m/base.h"
+
+#include <errno.h>
+#include <signal.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#define TEMP_SLOTS 64
+#define TEMP_PATH_MAX 4096
+
+static char temp_path[TEMP_SLOTS][TEMP_PATH_MAX];
+static atomic_int temp_used[TEMP_SLOTS]; /* 0 free, 1 taken (path being set), 2 listed */
+
+static int temp_list(const char *path)
+{
+  for (int k = 0; k < TEMP_SLOTS; k++) {
+    int expect = 0;
+    if (!atomic_compare_exchange_strong(&temp_used[k], &expect, 1)) continue;
+    snprintf(temp_path[k], TEMP_PATH_MAX, "%s", path);
+    atomic_store(&temp_used[k], 2);
+    return k;
+  }
+  return -1; /* (more files at once than slots: written all the same, not cleaned on a signal) */
+}
+
+static void temp_unlist(int k)
+{
+  if (k >= 0) atomic_store(&temp_used[k], 0);
+}
+
+static void on_signal(int sig)
+{
+  for (int k = 0; k < TEMP_SLOTS; k++)
+    if (atomic_load(&temp_used[k]) == 2) unlink(temp_path[k]);
+  signal(sig, SIG_DFL);
+  raise(sig);
+}
+
+void i2m_outfile_signals(void)
+{
+  static const int sigs[] = {SIGINT, SIGTERM, SIGHUP};
+  for (size_t i = 0; i < sizeof sigs / sizeof *sigs; i++) {
+    struct sigaction sa, old;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    if (sigaction(sigs[i], NULL, &old) == 0 && old.sa_handler == SIG_IGN) continue; /* (nohup keeps its way) */
+    sigaction(sigs[i], &sa, NULL);
+  }
+  signal(SIGXFSZ, SIG_IGN);
+}
+
+i2m_err_t i2m_outfile_open(i2m_outfile_t *o, const char *path, const char *mode)
+{
+  memset(o, 0, sizeof *o);
+  o->slot = -1;
+  I2M_CHECK(path && *path, I2M_ERR_ARG, "empty output file name");
+  const size_t n = strlen(path);
+  I2M_CHECK(n + 32 < TEMP_PATH_MAX, I2M_ERR_IO, "%s: path too long", path);
+  I2M_CALL(i2m_malloc(n + 1, 1, &o->path));
+  memcpy(o->path, path, n + 1);
+  i2m_err_t err = i2m_malloc(n + 32, 1, &o->tmp);
+  if (err != I2M_OK) {
+    i2m_free(&o->path);
+    return err;
+  }
+  static atomic_uint serial;
+  snprintf(o->tmp, n + 32, "%s.tmp%ld.%u", path, (long)getpid(), atomic_fetch_add(&serial, 1u) % 100000u);
+  o->slot = temp_list(o->tmp);
+  o->f = fopen(o->tmp, mode);
+  if (!o->f) {
+    const int e = errno;
+    temp_unlist(o->slot);
+    i2m_free(&o->tmp);
+    err = I2M_ERROR(I2M_ERR_IO, "%s: cannot open for writing: %s", path, strerror(e));
+    i2m_free(&o->path);
+    return err;
+  }
+  return I2M_OK;
+}
+
+i2m_err_t i2m_outfile_commit(i2m_outfile_t *o)
+{
+  if (!o->f) return I2M_ERROR(I2M_ERR_INTERNAL, "committing an output file that is not open");
+  errno = 0;
+  int bad = ferror(o->f) ? (errno ? errno : EIO) : 0;
+  if (fflush(o->f) != 0 && !bad) bad = errno ? errno : EIO;
+  if (fclose(o->f) != 0 && !bad) bad = errno ? errno : EIO;
+  o->f = NULL;
+  if (!bad && rename(o->tmp, o->path) != 0) bad = errno;
+  i2m_err_t err = I2M_OK;
+  if (bad) {
+    unlink(o->tmp);
+    err = I2M_ERROR(I2M_ERR_IO, "%s: writing failed: %s (the previous file, if any, is untouched)", o->path,
+                    strerror(bad));
+  }
+  temp_unlist(o->slot);
+  i2m_free(&o->tmp);
+  i2m_free(&o->path);
+  return err;
+}
+
+void i2m_outfile_abandon(i2m_outfile_t *o)
+{
+  if (o->f) fclose(o->f);
+  o->f = NULL;
+  if (o->tmp) unlink(o->tmp);
+  temp_unlist(o->slot);
+  i2m_free(&o->tmp);
+  i2m_free(&o->path);
+}
+
+/* The same file: the same device and inode when both exist; otherwise the same name in the
+ * same directory (an output not written yet). */
+static bool split_dir(const char *path, char *dir, size_t cap, const char **base)
+{
+  const char *slash = strrchr(path, '/');
+  const size_t n = slash ? (size_t)(slash - path) : 0;
+  if (n + 2 > cap) return false;
+  if (!slash) snprintf(dir, cap, ".");
+  else if (n == 0) snprintf(dir, cap, "/");
+  else {
+    memcpy(dir, path, n);
+    dir[n] = '\0';
+  }
+  *base = slash ? slash + 1 : path;
+  return true;
+}
+
+bool i2m_same_file(const char *a, const char *b)
+{
+  if (!a || !b) return false;
+  struct stat sa, sb;
+  const bool ea = stat(a, &sa) == 0, eb = stat(b, &sb) == 0;
+  if (ea && eb) return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+  if (ea != eb) return false;
+  char da[TEMP_PATH_MAX], db[TEMP_PATH_MAX];
+  const char *ba, *bb;
+  if (!split_dir(a, da, sizeof da, &ba) || !split_dir(b, db, sizeof db, &bb)) return strcmp(a, b) == 0;
+  if (strcmp(ba, bb) != 0) return false;
+  if (stat(da, &sa) != 0 || stat(db, &sb) != 0) return strcmp(da, db) == 0;
+  return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}

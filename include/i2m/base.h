@@ -190,6 +190,9 @@ double i2m_wtime(void);
 size_t i2m_peak_rss_bytes(void);
 /** Current resident set size in bytes (0 if unknown). */
 size_t i2m_current_rss_bytes(void);
+/** The memory this process may use: the machine's physical memory, lowered by the process
+ *  limits (RLIMIT_AS, RLIMIT_DATA) when they are set.  0 if unknown. */
+double i2m_memory_limit_bytes(void);
 
 /* ---- OpenMP outside src/threads goes through these (no-ops without OpenMP) ---- */
 #ifdef _OPENMP

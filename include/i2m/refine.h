@@ -61,6 +61,16 @@ void i2m_refine_params_default(i2m_refine_params_t *p);
  *  staircase steps are that high anyway. */
 double i2m_refine_default_delta(const i2m_image_t *img);
 
+/** The size of a run, estimated from the image and the parameters before it starts. */
+typedef struct {
+  double interface_mm2; /**< area of the voxel faces between labels (the staircase) */
+  double volume_mm3;    /**< labelled volume */
+  double tets;          /**< estimated output tets (within a factor of about two) */
+  double bytes;         /**< estimated peak memory of a one-process run */
+} i2m_refine_estimate_t;
+/** Fills *e; one pass over the voxels (OpenMP threads). */
+void i2m_refine_estimate(const i2m_image_t *img, const i2m_refine_params_t *p, i2m_refine_estimate_t *e);
+
 /** Checks parameters against the image; one clear message on error. */
 i2m_err_t i2m_refine_params_check(const i2m_refine_params_t *p, const i2m_image_t *img);
 

@@ -6,8 +6,10 @@
  * untouched.  The temporaries being written are listed in a fixed table that a handler for
  * SIGINT, SIGTERM and SIGHUP empties (unlink is async-signal-safe) before the signal's
  * default action ends the process.  SIGXFSZ is ignored, so that a file-size limit is a
- * failed write with a message, not a killed process. */
-#define _POSIX_C_SOURCE 200809L
+ * failed write with a message, not a killed process.  A symbolic link to a regular file
+ * keeps pointing at it (the file it names is replaced); what is not a regular file
+ * (/dev/null, a pipe) is written in place. */
+#define _XOPEN_SOURCE 700 /* realpath */
 #include "i2m/base.h"
 
 #include <errno.h>
@@ -24,6 +26,8 @@
 
 static char temp_path[TEMP_SLOTS][TEMP_PATH_MAX];
 static atomic_int temp_used[TEMP_SLOTS]; /* 0 free, 1 taken (path being set), 2 listed */
+
+static i2m_err_t open_tmp(i2m_outfile_t *o, const char *path, const char *mode);
 
 static int temp_list(const char *path)
 {
@@ -64,11 +68,47 @@ void i2m_outfile_signals(void)
   signal(SIGXFSZ, SIG_IGN);
 }
 
+/* Where the temporary goes and what it replaces: the path itself, or the regular file a
+ * symbolic link names (the link stays).  NULL: not a regular file (/dev/null, a pipe, a
+ * dangling link), written in place. */
+static char *final_name(const char *path)
+{
+  struct stat st;
+  char *real = NULL;
+  if (lstat(path, &st) != 0) real = strdup(path); /* (a new file) */
+  else if (S_ISREG(st.st_mode)) real = strdup(path);
+  else if (S_ISLNK(st.st_mode) && stat(path, &st) == 0 && S_ISREG(st.st_mode)) real = realpath(path, NULL);
+  return real;
+}
+
+static i2m_err_t open_in_place(i2m_outfile_t *o, const char *path, const char *mode)
+{
+  const size_t n = strlen(path);
+  I2M_CALL(i2m_malloc(n + 1, 1, &o->path));
+  memcpy(o->path, path, n + 1);
+  o->f = fopen(path, mode);
+  if (!o->f) {
+    const int e = errno;
+    i2m_free(&o->path);
+    return I2M_ERROR(I2M_ERR_IO, "%s: cannot open for writing: %s", path, strerror(e));
+  }
+  return I2M_OK;
+}
+
 i2m_err_t i2m_outfile_open(i2m_outfile_t *o, const char *path, const char *mode)
 {
   memset(o, 0, sizeof *o);
   o->slot = -1;
   I2M_CHECK(path && *path, I2M_ERR_ARG, "empty output file name");
+  char *real = final_name(path);
+  if (!real) return open_in_place(o, path, mode);
+  const i2m_err_t err = open_tmp(o, real, mode);
+  free(real);
+  return err;
+}
+
+static i2m_err_t open_tmp(i2m_outfile_t *o, const char *path, const char *mode)
+{
   const size_t n = strlen(path);
   I2M_CHECK(n + 32 < TEMP_PATH_MAX, I2M_ERR_IO, "%s: path too long", path);
   I2M_CALL(i2m_malloc(n + 1, 1, &o->path));
@@ -101,12 +141,12 @@ i2m_err_t i2m_outfile_commit(i2m_outfile_t *o)
   if (fflush(o->f) != 0 && !bad) bad = errno ? errno : EIO;
   if (fclose(o->f) != 0 && !bad) bad = errno ? errno : EIO;
   o->f = NULL;
-  if (!bad && rename(o->tmp, o->path) != 0) bad = errno;
+  if (!bad && o->tmp && rename(o->tmp, o->path) != 0) bad = errno;
   i2m_err_t err = I2M_OK;
   if (bad) {
-    unlink(o->tmp);
-    err = I2M_ERROR(I2M_ERR_IO, "%s: writing failed: %s (the previous file, if any, is untouched)", o->path,
-                    strerror(bad));
+    if (o->tmp) unlink(o->tmp);
+    err = I2M_ERROR(I2M_ERR_IO, "%s: writing failed: %s%s", o->path, strerror(bad),
+                    o->tmp ? " (the previous file, if any, is untouched)" : "");
   }
   temp_unlist(o->slot);
   i2m_free(&o->tmp);

@@ -35,3 +35,19 @@ size_t i2m_current_rss_bytes(void)
   if (!ok) return 0;
   return (size_t)pages_resident * (size_t)sysconf(_SC_PAGESIZE);
 }
+
+double i2m_memory_limit_bytes(void)
+{
+  double limit = 0;
+#if defined(_SC_PHYS_PAGES) && defined(_SC_PAGESIZE)
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+  if (pages > 0 && page > 0) limit = (double)pages * (double)page;
+#endif
+  static const int which[] = {RLIMIT_AS, RLIMIT_DATA};
+  for (size_t i = 0; i < sizeof which / sizeof *which; i++) {
+    struct rlimit rl;
+    if (getrlimit(which[i], &rl) == 0 && rl.rlim_cur != RLIM_INFINITY && (limit == 0 || (double)rl.rlim_cur < limit))
+      limit = (double)rl.rlim_cur;
+  }
+  return limit;
+}

@@ -7,6 +7,7 @@
  * rank extracts the tets it holds and the writer either writes them as pieces (.pvtu) or
  * stitches them on rank 0.  Every step that can fail agrees on the error across the ranks,
  * so that all of them end with the same exit code and rank 0 prints the one message. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -73,6 +74,26 @@ static i2m_err_t refine(run_t *r)
   return i2m_dist_refine(r->par, r->ref, &d, &r->team, &r->dist);
 }
 
+/* The run's size estimated before any work: refused when it cannot fit in memory. */
+static i2m_err_t check_estimate(run_t *r)
+{
+  i2m_refine_estimate_t e;
+  i2m_refine_estimate(r->img, &r->opt.params, &e);
+  const i2m_par_t *par = r->par;
+  const double mine = e.bytes / par->size; /* (each rank holds its share of the mesh) */
+  double limit = i2m_memory_limit_bytes() / par->local_size, given = r->opt.max_memory;
+  if (given > 0) limit = given;
+  i2m_debug("estimate: interface %.4g mm2, volume %.4g mm3, %.4g tets, %.4g MB per process (limit %.4g MB)",
+            e.interface_mm2, e.volume_mm3, e.tets, mine / 1048576.0, limit / 1048576.0);
+  I2M_CHECK(limit <= 0 || mine <= limit, I2M_ERR_MEMORY,
+            "the mesh is estimated at %.3g million tets and %.3g GB per process (interface %.3g mm2 at delta %g mm), "
+            "more than the %.3g GB %s: raise --delta or --size, or run on more processes",
+            e.tets / 1e6, mine / 1073741824.0, e.interface_mm2,
+            isnan(r->opt.params.delta) ? i2m_refine_default_delta(r->img) : r->opt.params.delta, limit / 1073741824.0,
+            given > 0 ? "of --max-memory" : par->local_size > 1 ? "each process of this node may use" : "this process may use");
+  return I2M_OK;
+}
+
 static i2m_err_t run_mesher(run_t *r)
 {
   cli_options_t *o = &r->opt;
@@ -80,6 +101,7 @@ static i2m_err_t run_mesher(run_t *r)
   const i2m_image_read_opts_t ro = {o->allow_external_data != 0};
   AGREE(r, i2m_image_read_with(o->input, &ro, &r->img, NULL));
   AGREE(r, i2m_refine_params_check(&o->params, r->img));
+  AGREE(r, check_estimate(r));
   phase_end(r, I2M_PHASE_READ);
 
   phase_begin(r, "distance transform");

@@ -39,6 +39,8 @@ void cli_usage(FILE *f)
           "                        out, tets made), for replaying or simulating the run\n"
           "  --seed N              random seed (default 1)\n"
           "  --check               check the triangulation's validity before writing (slow)\n"
+          "  --max-memory BYTES    refuse a run whose estimated peak memory (per process) exceeds this\n"
+          "                        (8G, 500M; default: the machine's memory and the process limits)\n"
           "  --allow-external-data a detached header (.nhdr, .mhd) may name a data file outside its\n"
           "                        own directory (refused by default)\n"
           "  --quiet               no progress or summary (errors only); --verbose: more detail\n"
@@ -86,6 +88,24 @@ static i2m_err_t parse_label_size(const char *s, cli_options_t *o, int *n)
   return I2M_OK;
 }
 
+/* "8G", "500M", "1.5T", "123456" (bytes; K M G T binary). */
+static i2m_err_t parse_bytes(const char *opt, const char *s, double *x)
+{
+  char *end = NULL;
+  errno = 0;
+  double v = s ? strtod(s, &end) : NAN;
+  double unit = 1;
+  if (end && *end) {
+    const char *units = "KMGT", *u = strchr(units, *end == 'k' ? 'K' : *end);
+    if (u && *u) unit = ldexp(1.0, 10 * (int)(u - units + 1));
+    if (u && *u && (end[1] == '\0' || ((end[1] == 'B' || end[1] == 'b') && end[2] == '\0'))) end = "";
+  }
+  I2M_CHECK(s && end != s && *end == '\0' && errno == 0 && isfinite(v) && v > 0, I2M_ERR_ARG,
+            "%s expects a size in bytes such as 8G, 500M or 1.5T, got '%s'", opt, s ? s : "(nothing)");
+  *x = v * unit;
+  return I2M_OK;
+}
+
 static i2m_err_t parse_region(const char *s, cli_options_t *o, int *n)
 {
   I2M_CHECK(*n < I2M_MAX_LIST, I2M_ERR_ARG, "--region: at most %d are supported", I2M_MAX_LIST);
@@ -121,7 +141,7 @@ static i2m_err_t parse_region(const char *s, cli_options_t *o, int *n)
 static bool takes_value(const char *opt)
 {
   static const char *const names[] = {"-o", "--output", "--report", "--trace", "--delta", "--ratio", "--facet-angle",
-                                      "--size", "--size-label", "--region", "--seed", "--coarse-factor",
+                                      "--size", "--size-label", "--region", "--seed", "--coarse-factor", "--max-memory",
                                       "--sliver-angle", "--depth", "--threads"};
   for (size_t k = 0; k < sizeof names / sizeof *names; k++)
     if (!strcmp(opt, names[k])) return true;
@@ -146,6 +166,7 @@ static i2m_err_t parse_valued(const char *opt, const char *val, cli_options_t *o
     I2M_CHECK(p->size > 0, I2M_ERR_ARG, "--size must be a positive length in mm (got %s)", val);
   } else if (!strcmp(opt, "--size-label")) I2M_CALL(parse_label_size(val, o, nls));
   else if (!strcmp(opt, "--region")) I2M_CALL(parse_region(val, o, nrg));
+  else if (!strcmp(opt, "--max-memory")) I2M_CALL(parse_bytes(opt, val, &o->max_memory));
   else if (!strcmp(opt, "--seed")) {
     I2M_CALL(parse_int(opt, val, &iv));
     p->seed = (uint64_t)iv;

@@ -15,6 +15,7 @@ typedef struct {
   int allow_external_data; /* --allow-external-data */
   int depth;           /* the octree's depth (0: the default) */
   double coarse_factor;
+  double max_memory; /* --max-memory in bytes (0: the machine's memory and limits) */
   double sliver_angle; /* 0: no sliver perturbation */
   int help, version;
 } cli_options_t;

@@ -309,16 +309,20 @@ bool ctx_ensure_slots(i2m_dt_ctx_t *ctx, uint32_t ntets, uint32_t nverts)
   if (ctx->bounded) /* its own slots or nothing */
     return s->npool + (s->fresh_end - s->fresh_next) >= ntets && s->nvpool + (s->vfresh_end - s->vfresh_next) >= nverts;
   if (!ctx->locking) { /* sequential: shared lists are ours; grow when short */
-    uint32_t have_t = s->npool + dt->nfree_t + (s->fresh_end - s->fresh_next) + (dt->cap_t - i2m_dt_ntets_slots(dt));
-    uint32_t have_v = s->nvpool + dt->nfree_v + (dt->cap_v - i2m_dt_nverts_slots(dt));
-    if (have_t >= ntets && have_v >= nverts) return true;
-    uint64_t ct = have_t >= ntets ? dt->cap_t : (uint64_t)dt->cap_t + dt->cap_t / 2 + ntets + 1024;
+    /* ctx_tet_slot takes whole fresh chunks once the pool, the fresh range and the free list
+     * are used up: the capacity those chunks need is reserved here, where running out of
+     * memory is I2M_DT_FULL for the caller to report, not an abort inside a cavity. */
+    const uint32_t listed = s->npool + dt->nfree_t + (s->fresh_end - s->fresh_next);
+    const uint64_t chunks = listed >= ntets ? 0 : (ntets - listed + FRESH_CHUNK - 1) / FRESH_CHUNK;
+    const uint64_t need_t = (uint64_t)atomic_load_explicit(&dt->nt_atomic, memory_order_relaxed) + chunks * FRESH_CHUNK;
+    const uint32_t have_v = s->nvpool + dt->nfree_v + (dt->cap_v - i2m_dt_nverts_slots(dt));
+    if (need_t <= dt->cap_t && have_v >= nverts) return true;
+    uint64_t ct = need_t <= dt->cap_t ? dt->cap_t : (uint64_t)dt->cap_t + dt->cap_t / 2 + (need_t - dt->cap_t) + 1024;
     uint64_t cv = have_v >= nverts ? dt->cap_v : (uint64_t)dt->cap_v + dt->cap_v / 2 + nverts + 1024;
     if (ct > (UINT32_MAX >> 2) - 1) ct = (UINT32_MAX >> 2) - 1;
     if (cv > UINT32_MAX - 2) cv = UINT32_MAX - 2;
     if (i2m_dt_reserve(dt, (uint32_t)cv, (uint32_t)ct) != I2M_OK) return false;
-    have_t = s->npool + dt->nfree_t + (s->fresh_end - s->fresh_next) + (dt->cap_t - i2m_dt_ntets_slots(dt));
-    return have_t >= ntets;
+    return need_t <= dt->cap_t && s->nvpool + dt->nfree_v + (dt->cap_v - i2m_dt_nverts_slots(dt)) >= nverts;
   }
   while (s->npool + (s->fresh_end - s->fresh_next) < ntets) {
     if (ctx->slots.fresh_next < ctx->slots.fresh_end) { /* keep the remaining fresh slots in the pool */

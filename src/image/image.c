@@ -105,6 +105,7 @@ i2m_err_t i2m_image_create_from_values(const int64_t n[3], const double spacing[
     if (dir)
       for (int b = 0; b < 3; b++) img->dir[a][b] = dir[3 * a + b];
   }
+  I2M_CALL_GOTO(err, done, image_check_range(img));
   size_t nvox = (size_t)(n[0] * n[1] * n[2]);
   m.cap = 1024;
   I2M_CALL_GOTO(err, done, i2m_calloc(m.cap, sizeof *m.keys, &m.keys));

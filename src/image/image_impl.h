@@ -111,6 +111,14 @@ const char *image_describe_size(const int64_t n[3], i2m_scalar_t t, char *buf, s
  *  finite values and non-zero steps; orthonormalises nearly orthogonal axes (|cos| < 1e-3)
  *  and rejects sheared ones. */
 i2m_err_t image_set_geometry(i2m_image_t *img, double axis[3][3], const double origin[3]);
+/** A spacing given as such in a header (MetaImage ElementSpacing, NRRD spacings, INR VX/VY/VZ,
+ *  NIfTI pixdim) must be a positive number in every format: a flipped axis belongs in the
+ *  direction matrix, and a negative spacing is refused rather than read as one. */
+i2m_err_t image_check_spacing(const char *path, const char *field, int axis, double v);
+/** Refuses geometry that cannot be meshed in doubles: spacings outside 1e-6 .. 1e6 mm, or an
+ *  image so far from the world's origin that its coordinates keep fewer than 20 bits below
+ *  the smallest spacing (beyond 2^32 voxels from it). */
+i2m_err_t image_check_range(const i2m_image_t *img);
 
 /** ASCII case-insensitive string equality. */
 int image_streq(const char *a, const char *b);

@@ -130,6 +130,41 @@ static void normalise3(double a[3])
   for (int r = 0; r < 3; r++) a[r] /= l;
 }
 
+i2m_err_t image_check_spacing(const char *path, const char *field, int axis, double v)
+{
+  I2M_CHECK(isfinite(v) && v > 0, I2M_ERR_INPUT,
+            "%s: %s of axis %d is %g: a spacing must be a positive number (a flipped axis belongs in "
+            "the direction matrix)", path, field, axis, v);
+  return I2M_OK;
+}
+
+#define SPACING_MIN_MM 1e-6
+#define SPACING_MAX_MM 1e6
+#define RANGE_VOXELS 0x1p32 /* (a double's 52 bits: 20 left below the voxel) */
+
+i2m_err_t image_check_range(const i2m_image_t *img)
+{
+  double hmin = INFINITY, hmax = 0, far = 0;
+  for (int a = 0; a < 3; a++) {
+    hmin = fmin(hmin, img->spacing[a]);
+    hmax = fmax(hmax, img->spacing[a]);
+  }
+  I2M_CHECK(hmin >= SPACING_MIN_MM && hmax <= SPACING_MAX_MM, I2M_ERR_UNSUPPORTED,
+            "%s: voxel spacings of %g .. %g mm are outside what i2m meshes in double precision "
+            "(%g .. %g mm)", img->path, hmin, hmax, SPACING_MIN_MM, SPACING_MAX_MM);
+  for (int corner = 0; corner < 8; corner++) {
+    double g[3], w[3];
+    for (int a = 0; a < 3; a++) g[a] = (corner >> a & 1 ? (double)(img->n[a] - 1) : 0.0) * img->spacing[a];
+    i2m_image_grid_to_world(img, g, w);
+    for (int r = 0; r < 3; r++) far = fmax(far, fabs(w[r]));
+  }
+  I2M_CHECK(far <= hmin * RANGE_VOXELS, I2M_ERR_UNSUPPORTED,
+            "%s: the image reaches %.4g mm from the world's origin, too far for its %g mm voxels to be "
+            "meshed in double precision (at most %.4g mm: 2^32 voxels); move its origin closer",
+            img->path, far, hmin, hmin * RANGE_VOXELS);
+  return I2M_OK;
+}
+
 i2m_err_t image_set_geometry(i2m_image_t *img, double axis[3][3], const double origin[3])
 {
   double u[3][3];
@@ -159,7 +194,7 @@ i2m_err_t image_set_geometry(i2m_image_t *img, double axis[3][3], const double o
     img->origin[r] = origin[r] + 0.0; /* + 0.0 turns -0 into 0 */
     for (int c = 0; c < 3; c++) img->dir[r][c] = u[c][r] + 0.0;
   }
-  return I2M_OK;
+  return image_check_range(img);
 }
 
 /* ---- format detection and dispatch ---- */

@@ -124,7 +124,11 @@ static i2m_err_t inr_read(inr_t *h, image_stream_t *s, const char *path, i2m_ima
   I2M_CALL(inr_parse(h, path));
   I2M_CALL(inr_type(h, path, &vf.type));
   vf.big_endian = h->big;
-  for (int c = 0; c < 3; c++) axis[c][c] = h->vx[c];
+  for (int c = 0; c < 3; c++) {
+    static const char *const field[3] = {"VX", "VY", "VZ"};
+    I2M_CALL(image_check_spacing(path, field[c], c, h->vx[c]));
+    axis[c][c] = h->vx[c];
+  }
   I2M_CALL(image_check_data_size(s, h->n, vf.type));
   I2M_CALL(image_alloc(path, h->n, out));
   I2M_CALL(image_set_geometry(*out, axis, h->o));

@@ -125,6 +125,7 @@ static i2m_err_t meta_geometry(const meta_t *m, const char *path, double axis[3]
   I2M_CHECK(!m->matrix[0] || image_parse_doubles(m->matrix, M, nd * nd), I2M_ERR_INPUT,
             "%s: bad TransformMatrix \"%s\" (expected %d numbers)", path, m->matrix, nd * nd);
   for (int c = 0; c < 3; c++) {
+    I2M_CALL(image_check_spacing(path, "ElementSpacing", c, sp[c]));
     origin[c] = o[c];
     for (int r = 0; r < 3; r++) axis[c][r] = M[c * nd + r] * sp[c];
   }

@@ -112,9 +112,12 @@ static void nifti_quatern(const nifti_t *x, double axis[3][3], double origin[3])
 }
 
 /* World (RAS) axes and origin from sform, qform or pixdim, then converted to LPS. */
-static void nifti_geometry(const nifti_t *x, double axis[3][3], double origin[3])
+static i2m_err_t nifti_geometry(const nifti_t *x, const char *path, double axis[3][3], double origin[3])
 {
-  if (nifti_i16(x, OFF_SFORM_CODE) > 0) {
+  const bool sform = nifti_i16(x, OFF_SFORM_CODE) > 0;
+  for (int c = 0; c < 3 && !sform; c++) /* (qform and pixdim scaling use pixdim[1..3]) */
+    I2M_CALL(image_check_spacing(path, "pixdim", c, nifti_f32(x, OFF_PIXDIM + 4 * (c + 1))));
+  if (sform) {
     for (int r = 0; r < 3; r++) {
       for (int c = 0; c < 3; c++) axis[c][r] = nifti_f32(x, OFF_SROW_X + 16 * r + 4 * c);
       origin[r] = nifti_f32(x, OFF_SROW_X + 16 * r + 12);
@@ -131,6 +134,7 @@ static void nifti_geometry(const nifti_t *x, double axis[3][3], double origin[3]
     origin[r] = -origin[r];
     for (int c = 0; c < 3; c++) axis[c][r] = -axis[c][r];
   }
+  return I2M_OK;
 }
 
 /* Reads the header; *pair = 1 for a .hdr/.img pair. */
@@ -209,7 +213,7 @@ static i2m_err_t nifti_read(image_stream_t *s, const char *path, nifti_pair_t *p
   vf.inter = nifti_f32(&x, OFF_SCL_INTER);
   vf.scale = isfinite(vf.slope) && isfinite(vf.inter) && vf.slope != 0 &&
              (vf.slope != 1 || vf.inter != 0);
-  nifti_geometry(&x, axis, origin);
+  I2M_CALL(nifti_geometry(&x, path, axis, origin));
   I2M_CALL(nifti_position(s, &x, path, pair, pf));
   image_stream_t *data = pair ? &pf->ds : s;
   I2M_CALL(image_check_data_size(data, n, vf.type));

@@ -207,8 +207,7 @@ static i2m_err_t nrrd_spacings(const nrrd_t *h, const char *path, double axis[3]
   }
   for (int c = 0; c < 3; c++) {
     double v = sp[h->ax[c]];
-    I2M_CHECK(isfinite(v) && v != 0, I2M_ERR_INPUT, "%s: spacing %g of axis %d is not a positive "
-              "number", path, v, h->ax[c]);
+    I2M_CALL(image_check_spacing(path, "spacings", h->ax[c], v));
     for (int r = 0; r < 3; r++) axis[c][r] = r == c ? v : 0;
   }
   return I2M_OK;

@@ -48,15 +48,18 @@ i2m_err_t vgrid_enable_locks(vgrid_t *g)
 i2m_err_t vgrid_init(vgrid_t *g, const double lo[3], const double hi[3], double h)
 {
   memset(g, 0, sizeof *g);
+  I2M_CHECK(h > 0 && isfinite(h), I2M_ERR_INTERNAL, "a grid of cells of side %g", h);
   for (;;) { /* cells of side h over [lo - h, hi + h], coarser if that makes too many */
-    uint64_t n = 1;
+    double n = 1, m[3]; /* (counted in doubles: a tiny h must not overflow them) */
     for (int a = 0; a < 3; a++) {
-      g->origin[a] = lo[a] - h;
-      g->nc[a] = (uint32_t)ceil((hi[a] - lo[a] + 2 * h) / h);
-      if (g->nc[a] < 1) g->nc[a] = 1;
-      n *= g->nc[a];
+      m[a] = fmax(1.0, ceil((hi[a] - lo[a] + 2 * h) / h));
+      n *= m[a];
     }
-    if (n <= VGRID_MAX_CELLS) {
+    if (n <= (double)VGRID_MAX_CELLS) {
+      for (int a = 0; a < 3; a++) {
+        g->origin[a] = lo[a] - h;
+        g->nc[a] = (uint32_t)m[a];
+      }
       g->h = h;
       g->inv_h = 1.0 / h;
       g->ncells = (uint32_t)n;

@@ -75,6 +75,13 @@ absurd.nii.gz|cannot hold
 absurd.nrrd|holds only
 absurdgz.nrrd|cannot hold
 negative.nrrd|must be positive
+negspacing.mha|a spacing must be a positive number
+negspacing.inr|a spacing must be a positive number
+negspacings.nrrd|a spacing must be a positive number
+negpixdim.nii|a spacing must be a positive number
+far16.nrrd|too far for its 1 mm voxels
+far20.mha|too far for its 1 mm voxels
+tinyspacing.nii|outside what i2m meshes
 type.nrrd|unknown type \"quaternion\"
 ctrl.nrrd|unknown type \"?[31mred?\"
 type.mha|element type
@@ -95,6 +102,18 @@ garbage.nrrd|not a NRRD file
 garbage.bin|unknown image format
 garbage.nii|not a NIfTI-1 file
 garbage.mha|not a MetaImage file"
+
+# a negative spacing, in each format that states spacings as such: refused alike (a flipped
+# axis belongs in the direction matrix: NRRD space directions, a NIfTI sform)
+mk --spacing -1,1,1 -o "$T/negspacing.mha"
+mk --spacing 1,-2,1 -o "$T/negspacing.inr"
+mk --spacing 1,1,-1 --nrrd-space spacings -o "$T/negspacings.nrrd"
+mk --spacing -1,1,1 --nifti-form qform -o "$T/negpixdim.nii"
+
+# geometry that doubles cannot mesh: an origin 1e16 or 1e20 mm away, voxels of 1e-9 mm
+mk --origin 1e16,0,0 -o "$T/far16.nrrd"
+mk --origin 0,-1e20,0 -o "$T/far20.mha"
+mk --spacing 1e-9,1e-9,1e-9 -o "$T/tinyspacing.nii"
 
 # detached headers whose data file lies outside their directory: relative, absolute, through
 # a symbolic link (a header must not turn any file on the machine into label values)

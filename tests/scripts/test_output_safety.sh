@@ -7,6 +7,7 @@
 #  - SIGTERM or SIGHUP in the middle of writing (the moment the temporary appears) or at a
 #    random moment leaves either the previous file or the complete new one, never a part,
 #    and no temporary;
+#  - an output that is a symbolic link keeps pointing at the file, which is replaced;
 #  - JSON reports stay valid for a region with huge bounds and a label table with
 #    non-UTF-8 bytes, and the cross-section SVG escapes the table's names.
 set -u
@@ -71,6 +72,15 @@ fi
 no_temporary "failed write"
 (ulimit -f 40 && exec "$B/i2m" "$T/img.nrrd" -o "$T/out.pvtu" --quiet) 2>/dev/null && bad "a .pvtu beyond the size limit succeeded"
 no_temporary "failed .pvtu write"
+
+# an output that is a symbolic link: the file it names is replaced, the link stays
+cp "$T/old.vtu" "$T/target.vtu"
+ln -s target.vtu "$T/link.vtu"
+# shellcheck disable=SC2086
+"$B/i2m" "$T/img.nrrd" -o "$T/link.vtu" $RUN || bad "writing through a link"
+if [ -L "$T/link.vtu" ] && cmp -s "$T/target.vtu" "$T/new.vtu"; then ok "a linked output: the link kept, its file replaced"
+else bad "a linked output: link $( [ -L "$T/link.vtu" ] && echo kept || echo replaced), target $(cmp -s "$T/target.vtu" "$T/new.vtu" && echo new || echo old)"; fi
+no_temporary "linked output"
 
 # signals: once the moment the temporary appears, and at random moments
 whole_or_old() { cmp -s "$T/out.vtu" "$T/old.vtu" || cmp -s "$T/out.vtu" "$T/new.vtu"; }

@@ -8,6 +8,7 @@
 #   make bench           benchmarks; figures printed and written to bench/results/*.json
 #   make bench-mpi       ranks x threads sweep on the knee atlas (bench/bench_mpi.sh; Table 2, Fig. 7)
 #   make demo            meshes the knee atlas shipped in run/data end to end
+#   make fuzz            libFuzzer harnesses of the readers, FUZZ_SECONDS (60) each (clang)
 #   make DEBUG=1 | SANITIZE=address,undefined | SANITIZE=thread    other configurations
 #   make V=1             show the commands
 #   make MPI=mpich | CC=clang | CC=cc HAVE_MPI=0    other toolchains (see below)
@@ -146,7 +147,7 @@ endif
 
 # ---- build rules --------------------------------------------------------------------------
 .SECONDARY:
-.PHONY: FORCE all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full check-builds bench bench-mpi demo deps clean
+.PHONY: FORCE fuzz fuzz-bin all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full check-builds bench bench-mpi demo deps clean
 
 all: $(PROGRAMS) $(LIB)
 lib: $(LIB)
@@ -272,6 +273,24 @@ check-builds: $(DEPS_STAMP)
 check-tsan:
 	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=thread all $(BUILD_TSAN_TESTS)
 	$(Q)sh tests/run_tsan.sh
+
+# ---- fuzzing ------------------------------------------------------------------------------
+# make fuzz: libFuzzer harnesses (tests/fuzz/) for the image readers and i2m-check's mesh
+# readers, built with clang, ASan and UBSan in build/asan-clang/, each run FUZZ_SECONDS.
+FUZZ_SECONDS ?= 60
+FUZZ_BIN := $(patsubst tests/fuzz/%.c,$(BUILD)/fuzz/%,$(wildcard tests/fuzz/fuzz_*.c))
+CHECK_LIB_OBJ := $(filter-out %/check_main.o,$(CHECK_SRC:%.c=$(BUILD)/%.o))
+$(BUILD)/fuzz/%: tests/fuzz/%.c tests/fuzz/fuzz_common.h $(CHECK_LIB_OBJ) $(LIB)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) $(CPPFLAGS) -Itools/check $(ALL_CFLAGS) -fsanitize=fuzzer,address,undefined -o $@ $< $(CHECK_LIB_OBJ) $(LIB) \
+	  $(LDFLAGS) $(LDLIBS)
+fuzz-bin: $(FUZZ_BIN)
+
+fuzz: $(DEPS_STAMP) all
+	$(Q)command -v clang >/dev/null || { echo "make fuzz needs clang (apt-get install clang)" >&2; exit 1; }
+	$(Q)$(MAKE) --no-print-directory CC=clang SANITIZE=fuzzer-no-link,address,undefined fuzz-bin
+	$(Q)sh tests/fuzz/run.sh build/asan-clang/fuzz $(FUZZ_SECONDS)
 
 # ---- benchmarks and demo --------------------------------------------------------------------
 bench: all $(BENCH_SRC:bench/%.c=$(BUILD)/bench/%)

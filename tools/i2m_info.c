@@ -109,7 +109,7 @@ int main(int argc, char **argv)
 {
   const char *file = NULL;
   int json = 0;
-  i2m_image_read_opts_t ro = {false};
+  i2m_image_read_opts_t ro = {.allow_external_data = false};
   for (int i = 1; i < argc; i++) {
     if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
       usage(stdout);

@@ -69,6 +69,8 @@ i2m_err_t i2m_image_read_format(const char *path, i2m_image_t **out, i2m_image_f
 typedef struct {
   bool allow_external_data; /**< a detached header (.nhdr, .mhd) may name a data file outside
                                  its own directory (refused by default) */
+  bool header_only;         /**< the header only: size, geometry, type, data file checked;
+                                 no voxels (vox NULL, nlabels 0) */
 } i2m_image_read_opts_t;
 
 /** i2m_image_read_format() with options (NULL: the defaults). */

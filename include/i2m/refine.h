@@ -72,6 +72,9 @@ typedef struct {
 void i2m_refine_estimate(const i2m_image_t *img, const i2m_refine_params_t *p, i2m_refine_estimate_t *e);
 
 /** Checks parameters against the image; one clear message on error. */
+/** The checks that need only the image's geometry (its header): bounds on the parameters,
+ *  delta against the image's extent, regions inside it.  I2M_ERR_ARG names the option. */
+i2m_err_t i2m_refine_params_check_geometry(const i2m_refine_params_t *p, const i2m_image_t *img);
 i2m_err_t i2m_refine_params_check(const i2m_refine_params_t *p, const i2m_image_t *img);
 
 /** Counters of what refinement did. */

@@ -98,7 +98,11 @@ static i2m_err_t run_mesher(run_t *r)
 {
   cli_options_t *o = &r->opt;
   phase_begin(r, "reading the image");
-  const i2m_image_read_opts_t ro = {o->allow_external_data != 0};
+  i2m_image_read_opts_t ro = {.allow_external_data = o->allow_external_data != 0, .header_only = true};
+  AGREE(r, i2m_image_read_with(o->input, &ro, &r->img, NULL)); /* (the options checked before the voxels are read) */
+  AGREE(r, i2m_refine_params_check_geometry(&o->params, r->img));
+  i2m_image_destroy(&r->img);
+  ro.header_only = false;
   AGREE(r, i2m_image_read_with(o->input, &ro, &r->img, NULL));
   AGREE(r, i2m_refine_params_check(&o->params, r->img));
   AGREE(r, check_estimate(r));
@@ -255,7 +259,7 @@ int main(int argc, char **argv)
     i2m_err_t err = run_mesher(&r);
     if (err == I2M_OK) err = report(&r);
     err = i2m_par_agree(&par, err);
-    if (err != I2M_OK) code = fail(&par, 1);
+    if (err != I2M_OK) code = fail(&par, err == I2M_ERR_ARG ? 2 : 1); /* (an option the image refutes: 2 as a bad option) */
     run_free(&r);
   }
   i2m_par_finalize(&par);

@@ -50,6 +50,7 @@ typedef struct {
   int64_t gz_out;      /* decoded bytes consumed since gzip mode began */
   int eof;             /* no more bytes will come */
   int allow_external;  /* a detached header may name a data file outside its directory */
+  int header_only;     /* read the header and check the data's size, but not the voxels */
 } image_stream_t;
 
 /** Opens @p path for reading; names a missing file, a directory and an empty file in the
@@ -96,6 +97,9 @@ size_t image_scalar_size(i2m_scalar_t t);
  *  label_value, label_count, nlabels and file_type.  Streams: no copy of the file's voxels is
  *  kept.  A stream that ends early is an error naming the header's size and what was found. */
 i2m_err_t image_read_voxels(image_stream_t *s, const image_voxels_t *vf, i2m_image_t *img);
+/** The end of every reader: the voxels from @p data (the header's stream @p s or a detached
+ *  data file's), then the stream's end; with s->header_only, nothing (img->vox freed). */
+i2m_err_t image_read_body(image_stream_t *s, image_stream_t *data, const image_voxels_t *vf, i2m_image_t *img);
 
 /** Before allocating: checks that the stream can hold the voxels the header announces
  *  (raw mode: the file's remaining bytes; gzip mode: the best deflate ratio). */

@@ -301,6 +301,7 @@ i2m_err_t i2m_image_read_with(const char *path, const i2m_image_read_opts_t *opt
   path = pair_header(path, hdr, sizeof hdr);
   i2m_err_t err = image_stream_open(path, &s);
   s.allow_external = opts && opts->allow_external_data;
+  s.header_only = opts && opts->header_only;
   if (err == I2M_OK) err = read_detected(&s, path, out, &fmt);
   image_stream_close(&s);
   if (err != I2M_OK) i2m_image_destroy(out);

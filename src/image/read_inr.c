@@ -132,8 +132,7 @@ static i2m_err_t inr_read(inr_t *h, image_stream_t *s, const char *path, i2m_ima
   I2M_CALL(image_check_data_size(s, h->n, vf.type));
   I2M_CALL(image_alloc(path, h->n, out));
   I2M_CALL(image_set_geometry(*out, axis, h->o));
-  I2M_CALL(image_read_voxels(s, &vf, *out));
-  return image_stream_finish(s);
+  return image_read_body(s, s, &vf, *out);
 }
 
 i2m_err_t image_read_inr(image_stream_t *s, const char *path, i2m_image_t **out)

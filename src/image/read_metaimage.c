@@ -198,8 +198,7 @@ static i2m_err_t meta_read(meta_t *m, image_stream_t *s, const char *path, image
   I2M_CALL(meta_position(m, s, path, ds, zlib, vf.type, &data));
   I2M_CALL(image_alloc(path, m->n, out));
   I2M_CALL(image_set_geometry(*out, axis, origin));
-  I2M_CALL(image_read_voxels(data, &vf, *out));
-  return image_stream_finish(data);
+  return image_read_body(s, data, &vf, *out);
 }
 
 i2m_err_t image_read_metaimage(image_stream_t *s, const char *path, i2m_image_t **out)

@@ -219,8 +219,7 @@ static i2m_err_t nifti_read(image_stream_t *s, const char *path, nifti_pair_t *p
   I2M_CALL(image_check_data_size(data, n, vf.type));
   I2M_CALL(image_alloc(path, n, out));
   I2M_CALL(image_set_geometry(*out, axis, origin));
-  I2M_CALL(image_read_voxels(data, &vf, *out));
-  return image_stream_finish(data);
+  return image_read_body(s, data, &vf, *out);
 }
 
 i2m_err_t image_read_nifti(image_stream_t *s, const char *path, i2m_image_t **out)

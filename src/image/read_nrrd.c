@@ -350,8 +350,7 @@ static i2m_err_t nrrd_read(nrrd_t *h, image_stream_t *s, const char *path, image
   I2M_CALL(image_alloc(path, n, out));
   I2M_CALL(image_set_geometry(*out, axis, origin));
   image_voxels_t vf = {h->type_id, h->big_endian, 0, 1.0, 0.0};
-  I2M_CALL(image_read_voxels(data, &vf, *out));
-  return image_stream_finish(data);
+  return image_read_body(s, data, &vf, *out);
 }
 
 i2m_err_t image_read_nrrd(image_stream_t *s, const char *path, i2m_image_t **out)

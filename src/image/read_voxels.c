@@ -331,3 +331,13 @@ done:
   conv_free(&c);
   return err;
 }
+
+i2m_err_t image_read_body(image_stream_t *s, image_stream_t *data, const image_voxels_t *vf, i2m_image_t *img)
+{
+  if (s->header_only) {
+    i2m_free(&img->vox);
+    return I2M_OK;
+  }
+  I2M_CALL(image_read_voxels(data, vf, img));
+  return image_stream_finish(data);
+}

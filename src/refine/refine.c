@@ -32,12 +32,8 @@ static int label_index(const i2m_image_t *img, int64_t value)
   return -1;
 }
 
-i2m_err_t i2m_refine_params_check(const i2m_refine_params_t *p, const i2m_image_t *img)
+i2m_err_t i2m_refine_params_check_geometry(const i2m_refine_params_t *p, const i2m_image_t *img)
 {
-  const char *f = img->path && img->path[0] ? img->path : "image";
-  int64_t fg = 0;
-  for (int l = 1; l < img->nlabels; l++) fg += img->label_count[l];
-  I2M_CHECK(fg > 0, I2M_ERR_INPUT, "%s: the image has no foreground (every voxel is 0): nothing to mesh", f);
   I2M_CHECK(isnan(p->delta) || (p->delta > 0 && isfinite(p->delta)), I2M_ERR_ARG,
             "--delta must be a positive length in mm (got %g)", p->delta);
   I2M_CHECK(p->ratio >= 2.0 && isfinite(p->ratio), I2M_ERR_ARG,
@@ -46,15 +42,12 @@ i2m_err_t i2m_refine_params_check(const i2m_refine_params_t *p, const i2m_image_
             "--facet-angle must be between 0 and 30 degrees: beyond 30 refinement may not terminate (got %g)",
             p->facet_angle);
   I2M_CHECK(p->size > 0, I2M_ERR_ARG, "--size must be a positive length in mm (got %g)", p->size);
-  for (int k = 0; k < p->nlabel_sizes; k++) {
-    const i2m_label_size_t *ls = &p->label_sizes[k];
-    I2M_CHECK(label_index(img, ls->value) > 0, I2M_ERR_ARG, "--size-label %lld: %s has no label %lld",
-              (long long)ls->value, f, (long long)ls->value);
-    I2M_CHECK(ls->size > 0 && isfinite(ls->size), I2M_ERR_ARG, "--size-label %lld=%g: the size must be positive",
-              (long long)ls->value, ls->size);
-  }
-  double lo[3], hi[3];
+  double lo[3], hi[3], extent = 0;
   i2m_image_world_bounds(img, lo, hi);
+  for (int a = 0; a < 3; a++) extent = fmax(extent, hi[a] - lo[a]);
+  I2M_CHECK(isnan(p->delta) || p->delta < extent, I2M_ERR_ARG,
+            "--delta %g mm is not below the image's largest extent (%g mm): nothing could be resolved", p->delta,
+            extent);
   for (int k = 0; k < p->nregions; k++) {
     const i2m_region_t *g = &p->regions[k];
     for (int a = 0; a < 3; a++)
@@ -66,6 +59,23 @@ i2m_err_t i2m_refine_params_check(const i2m_refine_params_t *p, const i2m_image_
               lo[2], hi[0], hi[1], hi[2]);
     I2M_CHECK(g->size > 0 && isfinite(g->size), I2M_ERR_ARG, "--region %d: the size must be positive", k + 1);
     I2M_CHECK(g->ratio >= 2.0, I2M_ERR_ARG, "--region %d: the ratio must be at least 2 (got %g)", k + 1, g->ratio);
+  }
+  return I2M_OK;
+}
+
+i2m_err_t i2m_refine_params_check(const i2m_refine_params_t *p, const i2m_image_t *img)
+{
+  const char *f = img->path && img->path[0] ? img->path : "image";
+  I2M_CALL(i2m_refine_params_check_geometry(p, img));
+  int64_t fg = 0;
+  for (int l = 1; l < img->nlabels; l++) fg += img->label_count[l];
+  I2M_CHECK(fg > 0, I2M_ERR_INPUT, "%s: the image has no foreground (every voxel is 0): nothing to mesh", f);
+  for (int k = 0; k < p->nlabel_sizes; k++) {
+    const i2m_label_size_t *ls = &p->label_sizes[k];
+    I2M_CHECK(label_index(img, ls->value) > 0, I2M_ERR_ARG, "--size-label %lld: %s has no label %lld",
+              (long long)ls->value, f, (long long)ls->value);
+    I2M_CHECK(ls->size > 0 && isfinite(ls->size), I2M_ERR_ARG, "--size-label %lld=%g: the size must be positive",
+              (long long)ls->value, ls->size);
   }
   return I2M_OK;
 }

@@ -1,6 +1,8 @@
 #!/bin/sh
 # Limits: a run that cannot fit is refused before any work, with the estimate in one line;
 # running out of memory anyway is an error (exit 1, one line), never an abort or a crash.
+#  - options the header refutes (--delta beyond the image, a region outside it) exit 2
+#    before the voxels are read;
 #  - a tiny --delta on a small image (it used to overflow a grid and segfault, or refine for
 #    minutes) and a --max-memory below the estimate are refused at once, naming the estimate;
 #  - the liver at --delta 2 under address-space limits (ulimit -v) from 80 to 160 MB, at 1
@@ -31,6 +33,17 @@ else
   bad "--max-memory 20M: exit $rc: $(head -c 300 "$T/e")"
 fi
 "$B/i2m" "$DATA/liver.inr.gz" -o "$T/t.vtu" --max-memory 2G --quiet 2>"$T/e" || bad "--max-memory 2G refused the liver: $(cat "$T/e")"
+
+# options that the image's header refutes are refused before its voxels are read: this
+# file's gzip stream is cut short, which only reading the voxels would find
+"$B/i2m-mkimage" --dims 40,40,40 --shape noise --type int16 --gzip -o "$T/cut.nrrd" --truncate-bytes 3000 >/dev/null
+for opt in "--delta 1e6" "--region 500,500,500,600,600,600:1"; do
+  # shellcheck disable=SC2086
+  "$B/i2m" "$T/cut.nrrd" -o "$T/t.vtu" $opt --quiet 2>"$T/e"
+  rc=$?
+  if [ $rc -eq 2 ] && [ "$(wc -l <"$T/e")" -eq 1 ] && grep -q -- "${opt%% *}" "$T/e"; then echo "ok   $opt refused from the header: $(cat "$T/e")"
+  else bad "$opt on a header whose voxels are cut: exit $rc: $(head -c 300 "$T/e")"; fi
+done
 
 n=0 ok=0 oom=0
 for opts in "--threads 1" "--threads 2" "--threads 2 --deterministic"; do

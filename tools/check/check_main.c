@@ -191,7 +191,7 @@ static int run(const opts_t *o, ck_result_t *r)
     fprintf(stderr, "i2m-check: %s\n", i2m_error_message());
     return 2;
   }
-  const i2m_image_read_opts_t ro = {o->allow_external_data != 0};
+  const i2m_image_read_opts_t ro = {.allow_external_data = o->allow_external_data != 0};
   if (o->image && i2m_image_read_with(o->image, &ro, &img, NULL) != I2M_OK) {
     fprintf(stderr, "i2m-check: %s\n", i2m_error_message());
     goto done;

@@ -6,6 +6,7 @@
 #                        missing Debian packages first when run as root
 #   make check-builds    builds with MPICH, clang, cc without MPI (those installed); meshes with each
 #   make bench           benchmarks; figures printed and written to bench/results/*.json
+#   make bench-large     250 M voxels at default options, and about 150 M tets (minutes)
 #   make bench-mpi       ranks x threads sweep on the knee atlas (bench/bench_mpi.sh; Table 2, Fig. 7)
 #   make demo            meshes the knee atlas shipped in run/data end to end
 #   make fuzz            libFuzzer harnesses of the readers, FUZZ_SECONDS (60) each (clang)
@@ -147,7 +148,7 @@ endif
 
 # ---- build rules --------------------------------------------------------------------------
 .SECONDARY:
-.PHONY: FORCE fuzz fuzz-bin all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full check-builds bench bench-mpi demo deps clean
+.PHONY: FORCE fuzz fuzz-bin bench-large all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full check-builds bench bench-mpi demo deps clean
 
 all: $(PROGRAMS) $(LIB)
 lib: $(LIB)
@@ -295,6 +296,10 @@ fuzz: $(DEPS_STAMP) all
 # ---- benchmarks and demo --------------------------------------------------------------------
 bench: all $(BENCH_SRC:bench/%.c=$(BUILD)/bench/%)
 	$(Q)sh bench/run.sh $(BUILD)/bench
+
+# i2m at scale: 250 M voxels at default options, then about 150 M tets (bench/large.sh; minutes)
+bench-large: all
+	$(Q)I2M_DATA="$${I2M_DATA:-../shared/data}" PYTHON=$(PYTHON) sh bench/large.sh
 
 # the MPI sweep (I2M_BENCH_REPEATS, I2M_BENCH_CONFIGS, I2M_BENCH_IMAGE, I2M_BENCH_OPTS: see the script)
 # (the launcher that goes with the wrapper: mpicc.mpich -> mpirun.mpich)

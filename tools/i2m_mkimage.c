@@ -13,6 +13,10 @@ static void usage(FILE *f)
       "Writes a synthetic label image; the format follows OUT's extension: .nrrd .nhdr .nii\n"
       ".nii.gz .hdr (+.img) .mha .mhd (+.raw/.zraw) .inr .inr.gz.  A test fixture generator.\n"
       "  --shape S          ball (default), shells, cube, two-balls, speck, noise\n"
+      "  --from IMAGE       instead of a shape: the labels of IMAGE (any format i2m reads), with\n"
+      "                     its geometry (--dims, --spacing, --origin, --dir are ignored)\n"
+      "  --upsample K       with --from: K x K x K voxels for each of IMAGE's (1-4; the corner of\n"
+      "                     the image stays where it was)\n"
       "  --dims NX,NY,NZ    voxels (default 24,20,16)\n"
       "  --spacing X,Y,Z    mm (default 1,1,1)\n"
       "  --origin X,Y,Z     LPS world position of voxel (0,0,0) (default 0,0,0)\n"
@@ -48,7 +52,8 @@ static int parse_list(const char *s, double *v, int n)
 typedef struct {
   wimg_image_t im;
   wimg_opts_t o;
-  const char *shape, *out;
+  const char *shape, *out, *from;
+  int upsample;
   int64_t labels[64];
   int nlabels;
   long long truncate, corrupt;
@@ -113,6 +118,8 @@ static int option(mk_t *m, const char *opt, const char *arg)
   int t;
   if (strcmp(opt, "-o") == 0) m->out = arg;
   else if (strcmp(opt, "--shape") == 0) m->shape = arg;
+  else if (strcmp(opt, "--from") == 0) m->from = arg;
+  else if (strcmp(opt, "--upsample") == 0 && atoi(arg) >= 1 && atoi(arg) <= 4) m->upsample = atoi(arg);
   else if (strcmp(opt, "--dims") == 0 && parse_list(arg, v, 3))
     for (int a = 0; a < 3; a++) m->im.n[a] = (int64_t)v[a];
   else if (strcmp(opt, "--lie-dims") == 0 && parse_list(arg, v, 3))
@@ -160,6 +167,42 @@ static int damage(const mk_t *m)
   return ok ? 0 : -1;
 }
 
+/* --from IMAGE [--upsample K]: IMAGE's labels, each voxel split into K^3 (nearest neighbour),
+ * its geometry with the spacing divided by K and the origin moved so the corner stays. */
+static int64_t *from_image(mk_t *m)
+{
+  i2m_image_t *img = NULL;
+  if (i2m_image_read(m->from, &img) != I2M_OK) {
+    fprintf(stderr, "i2m-mkimage: %s\n", i2m_error_message());
+    return NULL;
+  }
+  const int K = m->upsample ? m->upsample : 1;
+  for (int a = 0; a < 3; a++) {
+    m->im.n[a] = K * img->n[a];
+    m->im.spacing[a] = img->spacing[a] / K;
+  }
+  for (int r = 0; r < 3; r++) {
+    m->im.origin[r] = img->origin[r];
+    for (int c = 0; c < 3; c++) {
+      m->im.dir[r][c] = img->dir[r][c];
+      m->im.origin[r] += img->dir[r][c] * img->spacing[c] * (-0.5 + 0.5 / K); /* (the corner stays) */
+    }
+  }
+  const int64_t *n = m->im.n, total = n[0] * n[1] * n[2];
+  int64_t *v = total <= (int64_t)1 << 31 ? malloc((size_t)total * sizeof *v) : NULL;
+  if (v) {
+#pragma omp parallel for schedule(static)
+    for (int64_t k = 0; k < n[2]; k++)
+      for (int64_t j = 0; j < n[1]; j++)
+        for (int64_t i = 0; i < n[0]; i++)
+          v[(k * n[1] + j) * n[0] + i] = img->label_value[i2m_image_label_voxel(img, i / K, j / K, k / K)];
+  } else {
+    fprintf(stderr, "i2m-mkimage: out of memory for %lld voxels\n", (long long)total);
+  }
+  i2m_image_destroy(&img);
+  return v;
+}
+
 int main(int argc, char **argv)
 {
   mk_t m;
@@ -182,13 +225,19 @@ int main(int argc, char **argv)
     } else i++;
   }
   if (m.nlabels == 0) m.labels[0] = 1, m.labels[1] = 2, m.labels[2] = 3, m.nlabels = 3;
-  if (!m.out || m.im.n[0] < 1 || m.im.n[1] < 1 || m.im.n[2] < 1 || m.im.n[0] * m.im.n[1] * m.im.n[2] > 100000000) {
-    fprintf(stderr, "i2m-mkimage: need -o OUT and dims of at most 1e8 voxels (try --help)\n");
-    return 2;
+  int64_t *v = NULL;
+  if (m.from) {
+    if (!m.out) return fprintf(stderr, "i2m-mkimage: need -o OUT (try --help)\n"), 2;
+    if (!(v = from_image(&m))) return 1;
+  } else {
+    if (!m.out || m.im.n[0] < 1 || m.im.n[1] < 1 || m.im.n[2] < 1 || m.im.n[0] * m.im.n[1] * m.im.n[2] > 100000000) {
+      fprintf(stderr, "i2m-mkimage: need -o OUT and dims of at most 1e8 voxels (try --help)\n");
+      return 2;
+    }
+    v = malloc((size_t)(m.im.n[0] * m.im.n[1] * m.im.n[2]) * sizeof *v);
+    if (!v) return fprintf(stderr, "i2m-mkimage: out of memory\n"), 1;
+    make_shape(&m, v);
   }
-  int64_t *v = malloc((size_t)(m.im.n[0] * m.im.n[1] * m.im.n[2]) * sizeof *v);
-  if (!v) return fprintf(stderr, "i2m-mkimage: out of memory\n"), 1;
-  make_shape(&m, v);
   m.im.values = v;
   int err = wimg_write(m.out, &m.im, &m.o);
   free(v);

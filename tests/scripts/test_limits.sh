@@ -5,7 +5,7 @@
 #    before the voxels are read;
 #  - a tiny --delta on a small image (it used to overflow a grid and segfault, or refine for
 #    minutes) and a --max-memory below the estimate are refused at once, naming the estimate;
-#  - the liver at --delta 2 under address-space limits (ulimit -v) from 80 to 160 MB, at 1
+#  - the liver at --delta 2 under address-space limits (ulimit -v) of 80 to 160 MB, at 1
 #    and 2 threads and in deterministic mode: exit 0 or exit 1 with one line about memory,
 #    every time (the runs that end in the middle of refinement, of the distance transform,
 #    of the extraction or of the writing all count).
@@ -48,7 +48,7 @@ done
 n=0 ok=0 oom=0
 for opts in "--threads 1" "--threads 2" "--threads 2 --deterministic"; do
   v=80000
-  while [ $v -le 160000 ]; do
+  while [ $v -le 160000 ]; do # (every 20 MB)
     # shellcheck disable=SC2086
     (ulimit -v $v && exec "$B/i2m" "$DATA/liver.inr.gz" -o "$T/m.vtu" --delta 2 --max-memory 100G --quiet $opts) 2>"$T/e"
     rc=$?
@@ -60,7 +60,7 @@ for opts in "--threads 1" "--threads 2" "--threads 2 --deterministic"; do
     else
       bad "ulimit -v $v, $opts: exit $rc: $(head -c 300 "$T/e")"
     fi
-    v=$((v + 10000))
+    v=$((v + 20000))
   done
 done
 echo "ok   $n runs under memory limits: $ok finished, $oom ended with an out-of-memory error line, none aborted"

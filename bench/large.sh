@@ -2,16 +2,16 @@
 # make bench-large: i2m at scale on one machine (minutes; not part of make bench).
 #  1. the knee atlas upsampled 2x per axis by i2m-mkimage (1024 x 1024 x 238 = 250 M voxels)
 #     meshed at default options;
-#  2. the knee atlas at --delta 0.074 (about 150 M tets).
+#  2. the knee atlas at --delta 0.073 (about 153 M tets).
 # Each on all cores; prints tets, time, peak memory and bytes per tet (the report's figures),
 # checks the 150 M-tet run's peak against 20 GiB, and writes bench/results/large_<date>.json.
 # The meshes go to a scratch directory under build/ (about 8 GB for the second), removed after.
-#   bench/large.sh [THREADS]      (I2M_LARGE_DELTA overrides 0.074)
+#   bench/large.sh [THREADS]      (I2M_LARGE_DELTA overrides 0.073)
 set -eu
 cd "$(dirname "$0")/.."
 T=${1:-$(getconf _NPROCESSORS_ONLN 2>/dev/null || echo 2)}
 DATA=${I2M_DATA:-../shared/data}
-DELTA=${I2M_LARGE_DELTA:-0.074}
+DELTA=${I2M_LARGE_DELTA:-0.073}
 PY=${PYTHON:-/usr/bin/python3}
 W=build/large
 rm -rf "$W"

@@ -52,6 +52,21 @@ EOF
   exit $fail
 } || fail=1
 
+# i2m-mkimage --from IMAGE --upsample 2 (bench-large's image): dimensions x2, spacing / 2,
+# every label's voxel count x8, the image's corner (and so its world box) where it was
+"$BIN/i2m-mkimage" --from "$I2M_DATA/spine_verse009.nii.gz" --upsample 2 -o "$T/up.nrrd" >/dev/null &&
+  "$BIN/i2m-info" --json "$I2M_DATA/spine_verse009.nii.gz" >"$T/a.json" && "$BIN/i2m-info" --json "$T/up.nrrd" >"$T/b.json" &&
+  "$PYTHON" - "$T/a.json" "$T/b.json" <<'EOF' || { echo "FAIL mkimage --upsample"; fail=1; }
+import json, sys
+a, b = (json.load(open(p)) for p in sys.argv[1:3])
+assert [2 * n for n in a["dims"]] == b["dims"], (a["dims"], b["dims"])
+assert all(abs(x / 2 - y) < 1e-6 for x, y in zip(a["spacing"], b["spacing"])), (a["spacing"], b["spacing"])
+ca, cb = a["labels_voxel_counts"], b["labels_voxel_counts"]
+assert ca.keys() == cb.keys() and all(8 * ca[v] == cb[v] for v in ca), "label counts"
+assert all(abs(x - y) < 1e-4 for r, s in zip(a["bounds"], b["bounds"]) for x, y in zip(r, s)), (a["bounds"], b["bounds"])
+print("ok   i2m-mkimage --upsample 2: dimensions, spacing, counts x8, world box kept")
+EOF
+
 # text output, help, usage errors
 "$BIN/i2m-info" "$I2M_DATA/liver.inr.gz" >"$T/liver.txt" 2>&1 && grep -q "438 x 353 x 165" "$T/liver.txt" &&
   grep -q "unsigned\|uint8" "$T/liver.txt" || { echo "FAIL text output"; cat "$T/liver.txt"; fail=1; }

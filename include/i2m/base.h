@@ -145,6 +145,9 @@ void i2m_outfile_abandon(i2m_outfile_t *o);
 /** Programs call this once: SIGINT, SIGTERM and SIGHUP remove the temporaries being written
  *  before they end the process; SIGXFSZ is ignored (a file-size limit fails the write). */
 void i2m_outfile_signals(void);
+/** The directory part of @p path into dir[cap]: "." when it has none, "/" for the root.
+ *  False when it does not fit. */
+bool i2m_path_dir(const char *path, char *dir, size_t cap);
 /** True when @p a and @p b name the same file (device and inode; for files not yet there,
  *  the same name in the same directory). */
 bool i2m_same_file(const char *a, const char *b);
@@ -156,6 +159,8 @@ void i2m_json_number(FILE *f, double x);
 /** Writes s as a JSON string: quotes, backslashes and control characters escaped, bytes that
  *  are not UTF-8 written as U+FFFD.  NULL writes "". */
 void i2m_json_string(FILE *f, const char *s);
+/** Writes "key": x (i2m_json_number), then ", " unless @p last. */
+void i2m_json_member(FILE *f, const char *key, double x, bool last);
 
 /* ---- logging ---- */
 

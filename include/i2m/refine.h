@@ -63,6 +63,7 @@ double i2m_refine_default_delta(const i2m_image_t *img);
 
 /** The size of a run, estimated from the image and the parameters before it starts. */
 typedef struct {
+  double delta;         /**< the delta in use (the default one when the parameters leave it) */
   double interface_mm2; /**< area of the voxel faces between labels (the staircase) */
   double volume_mm3;    /**< labelled volume */
   double tets;          /**< estimated output tets (within a factor of about two) */

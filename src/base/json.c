@@ -10,6 +10,13 @@ void i2m_json_number(FILE *f, double x)
   else fputs("null", f);
 }
 
+void i2m_json_member(FILE *f, const char *key, double x, bool last)
+{
+  fprintf(f, "\"%s\": ", key);
+  i2m_json_number(f, x);
+  if (!last) fputs(", ", f);
+}
+
 /* The length of the valid UTF-8 sequence at s (1-4), or 0 when the bytes there are not one
  * (overlong forms, surrogates and code points above U+10FFFF are not). */
 static int utf8_length(const unsigned char *s)

@@ -27,8 +27,6 @@
 static char temp_path[TEMP_SLOTS][TEMP_PATH_MAX];
 static atomic_int temp_used[TEMP_SLOTS]; /* 0 free, 1 taken (path being set), 2 listed */
 
-static i2m_err_t open_tmp(i2m_outfile_t *o, const char *path, const char *mode);
-
 static int temp_list(const char *path)
 {
   for (int k = 0; k < TEMP_SLOTS; k++) {
@@ -95,18 +93,6 @@ static i2m_err_t open_in_place(i2m_outfile_t *o, const char *path, const char *m
   return I2M_OK;
 }
 
-i2m_err_t i2m_outfile_open(i2m_outfile_t *o, const char *path, const char *mode)
-{
-  memset(o, 0, sizeof *o);
-  o->slot = -1;
-  I2M_CHECK(path && *path, I2M_ERR_ARG, "empty output file name");
-  char *real = final_name(path);
-  if (!real) return open_in_place(o, path, mode);
-  const i2m_err_t err = open_tmp(o, real, mode);
-  free(real);
-  return err;
-}
-
 static i2m_err_t open_tmp(i2m_outfile_t *o, const char *path, const char *mode)
 {
   const size_t n = strlen(path);
@@ -131,6 +117,18 @@ static i2m_err_t open_tmp(i2m_outfile_t *o, const char *path, const char *mode)
     return err;
   }
   return I2M_OK;
+}
+
+i2m_err_t i2m_outfile_open(i2m_outfile_t *o, const char *path, const char *mode)
+{
+  memset(o, 0, sizeof *o);
+  o->slot = -1;
+  I2M_CHECK(path && *path, I2M_ERR_ARG, "empty output file name");
+  char *real = final_name(path);
+  if (!real) return open_in_place(o, path, mode);
+  const i2m_err_t err = open_tmp(o, real, mode);
+  free(real);
+  return err;
 }
 
 i2m_err_t i2m_outfile_commit(i2m_outfile_t *o)
@@ -164,9 +162,7 @@ void i2m_outfile_abandon(i2m_outfile_t *o)
   i2m_free(&o->path);
 }
 
-/* The same file: the same device and inode when both exist; otherwise the same name in the
- * same directory (an output not written yet). */
-static bool split_dir(const char *path, char *dir, size_t cap, const char **base)
+bool i2m_path_dir(const char *path, char *dir, size_t cap)
 {
   const char *slash = strrchr(path, '/');
   const size_t n = slash ? (size_t)(slash - path) : 0;
@@ -177,10 +173,11 @@ static bool split_dir(const char *path, char *dir, size_t cap, const char **base
     memcpy(dir, path, n);
     dir[n] = '\0';
   }
-  *base = slash ? slash + 1 : path;
   return true;
 }
 
+/* The same file: the same device and inode when both exist; otherwise the same name in the
+ * same directory (an output not written yet). */
 bool i2m_same_file(const char *a, const char *b)
 {
   if (!a || !b) return false;
@@ -189,9 +186,9 @@ bool i2m_same_file(const char *a, const char *b)
   if (ea && eb) return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
   if (ea != eb) return false;
   char da[TEMP_PATH_MAX], db[TEMP_PATH_MAX];
-  const char *ba, *bb;
-  if (!split_dir(a, da, sizeof da, &ba) || !split_dir(b, db, sizeof db, &bb)) return strcmp(a, b) == 0;
-  if (strcmp(ba, bb) != 0) return false;
+  const char *ba = strrchr(a, '/'), *bb = strrchr(b, '/');
+  if (strcmp(ba ? ba + 1 : a, bb ? bb + 1 : b) != 0) return false;
+  if (!i2m_path_dir(a, da, sizeof da) || !i2m_path_dir(b, db, sizeof db)) return strcmp(a, b) == 0;
   if (stat(da, &sa) != 0 || stat(db, &sb) != 0) return strcmp(da, db) == 0;
   return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
 }

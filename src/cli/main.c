@@ -7,7 +7,6 @@
  * rank extracts the tets it holds and the writer either writes them as pieces (.pvtu) or
  * stitches them on rank 0.  Every step that can fail agrees on the error across the ranks,
  * so that all of them end with the same exit code and rank 0 prints the one message. */
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -88,8 +87,7 @@ static i2m_err_t check_estimate(run_t *r)
   I2M_CHECK(limit <= 0 || mine <= limit, I2M_ERR_MEMORY,
             "the mesh is estimated at %.3g million tets and %.3g GB per process (interface %.3g mm2 at delta %g mm), "
             "more than the %.3g GB %s: raise --delta or --size, or run on more processes",
-            e.tets / 1e6, mine / 1073741824.0, e.interface_mm2,
-            isnan(r->opt.params.delta) ? i2m_refine_default_delta(r->img) : r->opt.params.delta, limit / 1073741824.0,
+            e.tets / 1e6, mine / 1073741824.0, e.interface_mm2, e.delta, limit / 1073741824.0,
             given > 0 ? "of --max-memory" : par->local_size > 1 ? "each process of this node may use" : "this process may use");
   return I2M_OK;
 }

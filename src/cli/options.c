@@ -1,4 +1,5 @@
 /* cli layer: parsing and validation of bin/i2m's options (one clear message per mistake). */
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -91,16 +92,15 @@ static i2m_err_t parse_label_size(const char *s, cli_options_t *o, int *n)
 /* "8G", "500M", "1.5T", "123456" (bytes; K M G T binary). */
 static i2m_err_t parse_bytes(const char *opt, const char *s, double *x)
 {
+  static const char units[] = "KMGT";
   char *end = NULL;
   errno = 0;
-  double v = s ? strtod(s, &end) : NAN;
-  double unit = 1;
-  if (end && *end) {
-    const char *units = "KMGT", *u = strchr(units, *end == 'k' ? 'K' : *end);
-    if (u && *u) unit = ldexp(1.0, 10 * (int)(u - units + 1));
-    if (u && *u && (end[1] == '\0' || ((end[1] == 'B' || end[1] == 'b') && end[2] == '\0'))) end = "";
-  }
-  I2M_CHECK(s && end != s && *end == '\0' && errno == 0 && isfinite(v) && v > 0, I2M_ERR_ARG,
+  const double v = s ? strtod(s, &end) : NAN;
+  const char *u = end && *end ? strchr(units, toupper((unsigned char)*end)) : NULL;
+  const double unit = u ? ldexp(1.0, 10 * (int)(u - units + 1)) : 1.0;
+  const char *rest = u ? end + 1 : end; /* (after the unit, an optional B) */
+  if (u && (*rest == 'B' || *rest == 'b')) rest++;
+  I2M_CHECK(s && end != s && *rest == '\0' && errno == 0 && isfinite(v) && v > 0, I2M_ERR_ARG,
             "%s expects a size in bytes such as 8G, 500M or 1.5T, got '%s'", opt, s ? s : "(nothing)");
   *x = v * unit;
   return I2M_OK;

@@ -99,11 +99,7 @@ i2m_err_t image_sibling_path(const char *path, const char *file, int allow_exter
   strcpy(out + dir, file);
   if (allow_external) return I2M_OK;
   char header_dir[4096];
-  const size_t n = slash ? (size_t)(slash - path) : 0;
-  I2M_CHECK(n < sizeof header_dir, I2M_ERR_INPUT, "%s: path too long", path);
-  memcpy(header_dir, slash ? path : ".", slash ? n : 1);
-  header_dir[slash ? n : 1] = '\0';
-  if (slash && n == 0) strcpy(header_dir, "/");
+  I2M_CHECK(i2m_path_dir(path, header_dir, sizeof header_dir), I2M_ERR_INPUT, "%s: path too long", path);
   char *real_dir = realpath(header_dir, NULL), *real_data = realpath(out, NULL);
   bool inside = true;
   if (real_dir && real_data) { /* (a data file that is not there fails when it is opened) */
@@ -144,7 +140,7 @@ i2m_err_t image_check_spacing(const char *path, const char *field, int axis, dou
 
 i2m_err_t image_check_range(const i2m_image_t *img)
 {
-  double hmin = INFINITY, hmax = 0, far = 0;
+  double hmin = INFINITY, hmax = 0, far = 0, lo[3], hi[3];
   for (int a = 0; a < 3; a++) {
     hmin = fmin(hmin, img->spacing[a]);
     hmax = fmax(hmax, img->spacing[a]);
@@ -152,12 +148,8 @@ i2m_err_t image_check_range(const i2m_image_t *img)
   I2M_CHECK(hmin >= SPACING_MIN_MM && hmax <= SPACING_MAX_MM, I2M_ERR_UNSUPPORTED,
             "%s: voxel spacings of %g .. %g mm are outside what i2m meshes in double precision "
             "(%g .. %g mm)", img->path, hmin, hmax, SPACING_MIN_MM, SPACING_MAX_MM);
-  for (int corner = 0; corner < 8; corner++) {
-    double g[3], w[3];
-    for (int a = 0; a < 3; a++) g[a] = (corner >> a & 1 ? (double)(img->n[a] - 1) : 0.0) * img->spacing[a];
-    i2m_image_grid_to_world(img, g, w);
-    for (int r = 0; r < 3; r++) far = fmax(far, fabs(w[r]));
-  }
+  i2m_image_world_bounds(img, lo, hi);
+  for (int a = 0; a < 3; a++) far = fmax(far, fmax(fabs(lo[a]), fabs(hi[a])));
   I2M_CHECK(far <= hmin * RANGE_VOXELS, I2M_ERR_UNSUPPORTED,
             "%s: the image reaches %.4g mm from the world's origin, too far for its %g mm voxels to be "
             "meshed in double precision (at most %.4g mm: 2^32 voxels); move its origin closer",

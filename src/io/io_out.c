@@ -191,14 +191,7 @@ i2m_err_t i2m_mesh_check_writable(const char *path)
     return I2M_OK;
   }
   char dir[4096];
-  const char *slash = strrchr(path, '/');
-  size_t n = slash ? (size_t)(slash - path) : 0;
-  I2M_CHECK(n < sizeof dir, I2M_ERR_IO, "%s: path too long", path);
-  if (n == 0) snprintf(dir, sizeof dir, "%s", slash ? "/" : ".");
-  else {
-    memcpy(dir, path, n);
-    dir[n] = '\0';
-  }
+  I2M_CHECK(i2m_path_dir(path, dir, sizeof dir), I2M_ERR_IO, "%s: path too long", path);
   I2M_CHECK(stat(dir, &st) == 0 && S_ISDIR(st.st_mode), I2M_ERR_IO,
             "%s: cannot write: the directory %s does not exist", path, dir);
   I2M_CHECK(access(dir, W_OK) == 0, I2M_ERR_IO, "%s: cannot write into %s: %s", path, dir, strerror(errno));

@@ -106,14 +106,6 @@ static void json_vec3(FILE *f, const double x[3])
   fputc(']', f);
 }
 
-/* "key": x, (null when not finite) */
-static void json_field(FILE *f, const char *key, double x)
-{
-  fprintf(f, "\"%s\": ", key);
-  i2m_json_number(f, x);
-  fputs(", ", f);
-}
-
 static void json_params(FILE *f, const i2m_report_t *r)
 {
   const i2m_refine_params_t *p = r->params;
@@ -160,11 +152,11 @@ static void json_quality(FILE *f, const i2m_report_t *r)
 {
   const i2m_quality_t *q = r->quality;
   fprintf(f, "  \"quality\": {");
-  json_field(f, "min_dihedral", q->min_dihedral);
-  json_field(f, "max_dihedral", q->max_dihedral);
-  json_field(f, "max_radius_edge", q->max_radius_edge);
+  i2m_json_member(f, "min_dihedral", q->min_dihedral, false);
+  i2m_json_member(f, "max_dihedral", q->max_dihedral, false);
+  i2m_json_member(f, "max_radius_edge", q->max_radius_edge, false);
   fprintf(f, "\"tets_above_ratio\": %lld, ", (long long)q->n_ratio_above);
-  json_field(f, "min_facet_angle", q->min_facet_angle);
+  i2m_json_member(f, "min_facet_angle", q->min_facet_angle, false);
   fprintf(f, "\"facets_below_angle\": %lld, ", (long long)q->n_facet_below);
   fprintf(f, "\"facets_below_angle_at_junctions\": %lld, \"dihedral_histogram\": [", (long long)q->n_facet_below_junction);
   for (int k = 0; k < 180; k++) fprintf(f, "%s%lld", k ? ", " : "", (long long)q->dihedral_hist[k]);
@@ -240,8 +232,8 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
     const i2m_sliver_stats_t *v = &r->slivers;
     fprintf(f, "  \"slivers\": {\"angle\": %.6g, \"before\": %lld, \"after\": %lld, ", r->sliver_angle,
             (long long)v->slivers_before, (long long)v->slivers_after);
-    json_field(f, "min_dihedral_before", v->min_before);
-    json_field(f, "min_dihedral_after", v->min_after);
+    i2m_json_member(f, "min_dihedral_before", v->min_before, false);
+    i2m_json_member(f, "min_dihedral_after", v->min_after, false);
     fprintf(f, "\"moves_tried\": %lld, \"moves_kept\": %lld},\n", (long long)v->tried, (long long)v->kept);
   }
   fprintf(f, "  \"time_seconds\": {");

@@ -68,6 +68,7 @@ void i2m_refine_estimate(const i2m_image_t *img, const i2m_refine_params_t *p, i
   int64_t fg = 0;
   for (int l = 1; l < img->nlabels; l++) fg += img->label_count[l];
   const double delta = isnan(p->delta) ? i2m_refine_default_delta(img) : p->delta;
+  e->delta = delta;
   e->interface_mm2 = area;
   e->volume_mm3 = (double)fg * voxel_mm3;
   const double finer = fmax(1.0, i2m_refine_default_delta(img) / delta); /* (the volume's grading deepens) */

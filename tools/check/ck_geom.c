@@ -129,6 +129,13 @@ double ck_volume6(const double a[3], const double b[3], const double c[3], const
          u[2] * (v[0] * w[1] - v[1] * w[0]);
 }
 
+/* The exponent of x, clamped so that 2^-e stays a finite normal number (x may be subnormal). */
+static int pow2_exponent(double x)
+{
+  const int e = ilogb(x);
+  return e < -1000 ? -1000 : e > 1000 ? 1000 : e;
+}
+
 /* The largest magnitude of the four points' coordinates. */
 static double max_coordinate(const double *p[4])
 {
@@ -147,10 +154,10 @@ int ck_orient3d(const double a[3], const double b[3], const double c[3], const d
   const double *pts[4] = {a, b, c, d};
   const double big = max_coordinate(pts);
   if (isfinite(big) && (big > ORIENT_RANGE || (big > 0 && big < 1.0 / ORIENT_RANGE))) {
-    const int e = ilogb(big);
+    const double scale = ldexp(1.0, -pow2_exponent(big));
     double q[4][3];
     for (int i = 0; i < 4; i++)
-      for (int k = 0; k < 3; k++) q[i][k] = ldexp(pts[i][k], -e);
+      for (int k = 0; k < 3; k++) q[i][k] = pts[i][k] * scale;
     return ck_orient3d(q[0], q[1], q[2], q[3]);
   }
   double u[3], v[3], w[3];
@@ -176,9 +183,9 @@ void ck_tet_normalized(const double *p[4], double q[4][3])
   double m = 0;
   for (int i = 1; i < 4; i++)
     for (int k = 0; k < 3; k++) m = fmax(m, fabs(p[i][k] - p[0][k]));
-  const int e = m > 0 && isfinite(m) ? ilogb(m) : 0;
+  const double scale = m > 0 && isfinite(m) ? ldexp(1.0, -pow2_exponent(m)) : 1.0; /* (a power of two: exact) */
   for (int i = 0; i < 4; i++)
-    for (int k = 0; k < 3; k++) q[i][k] = ldexp(p[i][k] - p[0][k], -e);
+    for (int k = 0; k < 3; k++) q[i][k] = (p[i][k] - p[0][k]) * scale;
 }
 
 static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }

@@ -12,12 +12,7 @@
 
 #define JI(f, key, v, last) fprintf(f, "\"%s\": %lld%s", key, (long long)(v), (last) ? "" : ", ")
 #define JB(f, key, v, last) fprintf(f, "\"%s\": %s%s", key, (v) ? "true" : "false", (last) ? "" : ", ")
-static void JD(FILE *f, const char *key, double v, int last)
-{
-  fprintf(f, "\"%s\": ", key);
-  i2m_json_number(f, v);
-  if (!last) fprintf(f, ", ");
-}
+#define JD(f, key, v, last) i2m_json_member(f, key, v, last)
 
 static void json_validity(FILE *f, const ck_validity_t *v)
 {

@@ -233,14 +233,17 @@ unit-tests: $(UNIT_BIN) $(MPI_TOOLS)
 # ---- tests --------------------------------------------------------------------------------
 # check: release build and unit tests, the same unit tests under ASan+UBSan, the script
 # tests (tools, writers with meshio, error paths, end-to-end), threaded tests under TSan.
+# (the builds use every core even when make check itself was started without -j; the tests
+# run one at a time)
+CHECK_JOBS ?= $(if $(findstring j,$(firstword $(MAKEFLAGS))),,-j$(shell getconf _NPROCESSORS_ONLN 2>/dev/null || echo 2))
 check: $(DEPS_STAMP)
-	$(Q)$(MAKE) --no-print-directory WERROR=1 all unit-tests
+	$(Q)$(MAKE) --no-print-directory $(CHECK_JOBS) WERROR=1 all unit-tests
 	$(Q)$(MAKE) --no-print-directory WERROR=1 check-layers
 	$(Q)$(MAKE) --no-print-directory WERROR=1 check-unit
-	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=address,undefined all unit-tests
+	$(Q)$(MAKE) --no-print-directory $(CHECK_JOBS) WERROR=1 SANITIZE=address,undefined all unit-tests
 	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=address,undefined check-unit
 	$(Q)$(MAKE) --no-print-directory WERROR=1 check-scripts
-	$(Q)$(MAKE) --no-print-directory WERROR=1 SANITIZE=thread all $(BUILD_TSAN_TESTS)
+	$(Q)$(MAKE) --no-print-directory $(CHECK_JOBS) WERROR=1 SANITIZE=thread all $(BUILD_TSAN_TESTS)
 	$(Q)sh tests/run_tsan.sh
 	$(Q)sh tests/builds.sh
 	@echo "make check: all tests passed"

@@ -46,6 +46,19 @@ typedef struct i2m_image {
   char *path;              /**< owned: file it came from ("" for synthetic images) */
 } i2m_image_t;
 
+/** Tissue names of some label values (from a `.ctbl` colour table beside the image, or a 3D
+ *  Slicer segmentation's segment names).  value[i] and name[i] go together, values distinct. */
+typedef struct i2m_label_names {
+  int64_t n;      /**< number of named labels */
+  int64_t *value; /**< owned: [n] label values */
+  char **name;    /**< owned: [n] NUL-terminated names, each owned */
+} i2m_label_names_t;
+
+/** The name of label @p value, or NULL (also when @p names is NULL). */
+const char *i2m_label_name(const i2m_label_names_t *names, int64_t value);
+/** Frees the names; accepts NULL; sets *names = NULL. */
+void i2m_label_names_destroy(i2m_label_names_t **names);
+
 /** Reads a label image; the format is chosen by content and extension (.nrrd, .nhdr, .nii,
  *  .nii.gz, .mha, .mhd, .inr, .inr.gz).  On error *out is NULL and the message names the file
  *  and the problem.  Not collective. */

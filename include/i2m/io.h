@@ -2,9 +2,10 @@
  *   .vtu   VTK XML unstructured grid, binary appended data, cell data "material"
  *   .mesh  Medit ASCII: vertices, tetrahedra (ref = label value), interface triangles
  *          (ref = interface number; a comment block maps numbers to label pairs)
- *   .msh   Gmsh 4.1 (binary; ASCII when the environment variable I2M_MSH_ASCII=1): one
- *          physical volume per label ("label_<v>", tag v > 0), one physical surface per
- *          interface pair ("interface_<a>_<b>", tags after the largest label).
+ *   .msh   Gmsh 4.1 (binary; ASCII with i2m_write_opts_t.ascii or the environment variable
+ *          I2M_MSH_ASCII=1): one physical volume per label ("label_<v>", tag v > 0), one
+ *          physical surface per interface pair ("interface_<a>_<b>", tags after the largest
+ *          label).
  * Output is buffered (large fwrite chunks) and every write is checked; a failed write
  * removes the partial file.  bin/i2m-check reads all three back (tools/check). */
 #ifndef I2M_IO_H
@@ -20,6 +21,18 @@ extern "C" {
 /** Mesh file formats. */
 typedef enum { I2M_FORMAT_UNKNOWN = 0, I2M_FORMAT_VTU, I2M_FORMAT_MEDIT, I2M_FORMAT_GMSH, I2M_FORMAT_PVTU } i2m_format_t;
 
+/** How the writers write (i2m_write_opts_default() gives the defaults; NULL means them). */
+typedef struct i2m_write_opts {
+  const i2m_label_names_t *names; /**< borrowed, or NULL: tissue names for the formats that
+                                       carry names (Gmsh physical names) */
+  int msh_version;                /**< Gmsh: 41 (4.1, the default) or 22 (2.2) */
+  bool ascii;                     /**< Gmsh: text instead of binary */
+  bool compress;                  /**< VTU: zlib-compressed appended data (default true) */
+} i2m_write_opts_t;
+
+/** The default write options. */
+i2m_write_opts_t i2m_write_opts_default(void);
+
 /** Format for a file name (by extension, case-insensitive); I2M_FORMAT_UNKNOWN if none. */
 i2m_format_t i2m_format_from_path(const char *path);
 
@@ -28,15 +41,16 @@ i2m_format_t i2m_format_from_path(const char *path);
 i2m_err_t i2m_mesh_check_writable(const char *path);
 
 /** Writes @p m to @p path in the format given by its extension.  Not collective.
- *  On error the message names the file and the problem (unknown extension, disk full). */
-i2m_err_t i2m_mesh_write(const i2m_tetmesh_t *m, const char *path);
+ *  @p opts may be NULL (the defaults).  On error the message names the file and the
+ *  problem (unknown extension, disk full). */
+i2m_err_t i2m_mesh_write(const i2m_tetmesh_t *m, const char *path, const i2m_write_opts_t *opts);
 
 /** Writes a distributed mesh (each rank's piece, with global vertex ids).  NAME.pvtu: every
  *  rank writes its piece NAME_<rank>.vtu beside it (its tets, material, the point array
  *  GlobalNodeId; no ghost cells) and rank 0 writes the .pvtu that names them.  Any other
  *  format: the pieces are stitched on rank 0 (vertices merged by global id), which writes the
  *  one file; *m on rank 0 is then the whole mesh.  Collective; the same error on every rank. */
-i2m_err_t i2m_mesh_write_par(const i2m_par_t *par, i2m_tetmesh_t **m, const char *path);
+i2m_err_t i2m_mesh_write_par(const i2m_par_t *par, i2m_tetmesh_t **m, const char *path, const i2m_write_opts_t *opts);
 
 #ifdef __cplusplus
 }

@@ -166,7 +166,7 @@ static i2m_err_t run_mesher(run_t *r)
             o->input, i2m_refine_params(r->ref)->delta);
 
   phase_begin(r, "writing the mesh");
-  I2M_CALL(i2m_mesh_write_par(r->par, &r->mesh, o->output)); /* (agreed on inside) */
+  I2M_CALL(i2m_mesh_write_par(r->par, &r->mesh, o->output, NULL)); /* (agreed on inside) */
   phase_end(r, I2M_PHASE_WRITE);
   return I2M_OK;
 }

@@ -59,10 +59,11 @@ int io_fmt_i64(char *p, int64_t v);
 i2m_err_t io_interface_pairs(const i2m_tetmesh_t *m, int64_t **pairs, int64_t *npairs,
                              int32_t **tri_pair);
 
-i2m_err_t io_write_vtu(const i2m_tetmesh_t *m, const char *path);
+/* The writers (opts: never NULL here). */
+i2m_err_t io_write_vtu(const i2m_tetmesh_t *m, const char *path, const i2m_write_opts_t *opts);
 /** The same with material Int64 (wide) or Int32 (the pieces of a .pvtu must agree). */
-i2m_err_t io_write_vtu_typed(const i2m_tetmesh_t *m, const char *path, int wide);
-i2m_err_t io_write_medit(const i2m_tetmesh_t *m, const char *path);
-i2m_err_t io_write_gmsh(const i2m_tetmesh_t *m, const char *path, int ascii);
+i2m_err_t io_write_vtu_typed(const i2m_tetmesh_t *m, const char *path, int wide, const i2m_write_opts_t *opts);
+i2m_err_t io_write_medit(const i2m_tetmesh_t *m, const char *path, const i2m_write_opts_t *opts);
+i2m_err_t io_write_gmsh(const i2m_tetmesh_t *m, const char *path, const i2m_write_opts_t *opts);
 
 #endif

@@ -198,15 +198,21 @@ i2m_err_t i2m_mesh_check_writable(const char *path)
   return I2M_OK;
 }
 
-i2m_err_t i2m_mesh_write(const i2m_tetmesh_t *m, const char *path)
+i2m_write_opts_t i2m_write_opts_default(void)
 {
+  const char *ascii = getenv("I2M_MSH_ASCII");
+  return (i2m_write_opts_t){.names = NULL, .msh_version = 41, .ascii = ascii && strcmp(ascii, "1") == 0, .compress = true};
+}
+
+i2m_err_t i2m_mesh_write(const i2m_tetmesh_t *m, const char *path, const i2m_write_opts_t *opts)
+{
+  const i2m_write_opts_t o = opts ? *opts : i2m_write_opts_default();
   I2M_CHECK(path && *path, I2M_ERR_ARG, "empty output file name");
   i2m_format_t fmt = i2m_format_from_path(path);
   I2M_CHECK(fmt != I2M_FORMAT_UNKNOWN && fmt != I2M_FORMAT_PVTU, I2M_ERR_ARG,
             "%s: unknown mesh format (expected a .vtu, .mesh or .msh file name)", path);
   I2M_CALL(check_mesh(m, path));
-  if (fmt == I2M_FORMAT_VTU) return io_write_vtu(m, path);
-  if (fmt == I2M_FORMAT_MEDIT) return io_write_medit(m, path);
-  const char *ascii = getenv("I2M_MSH_ASCII");
-  return io_write_gmsh(m, path, ascii && strcmp(ascii, "1") == 0);
+  if (fmt == I2M_FORMAT_VTU) return io_write_vtu(m, path, &o);
+  if (fmt == I2M_FORMAT_MEDIT) return io_write_medit(m, path, &o);
+  return io_write_gmsh(m, path, &o);
 }

@@ -287,14 +287,14 @@ static void gm_elements(gm_t *g, const i2m_tetmesh_t *m, const gm_ent_t *e)
   io_out_printf(&g->o, "%s$EndElements\n", g->ascii ? "" : "\n");
 }
 
-i2m_err_t io_write_gmsh(const i2m_tetmesh_t *m, const char *path, int ascii)
+i2m_err_t io_write_gmsh(const i2m_tetmesh_t *m, const char *path, const i2m_write_opts_t *opts)
 {
   gm_ent_t e;
   gm_t g;
   i2m_err_t err = gm_entities(m, path, &e);
   if (err == I2M_OK) err = io_out_open(&g.o, path);
   if (err == I2M_OK) {
-    g.ascii = ascii;
+    g.ascii = opts->ascii;
     gm_header(&g, &e);
     gm_nodes(&g, m);
     gm_elements(&g, m, &e);

@@ -36,8 +36,9 @@ static void medit_element(io_out_t *o, const int32_t *ids, int n, int64_t ref)
   io_out_commit(o, (size_t)k);
 }
 
-i2m_err_t io_write_medit(const i2m_tetmesh_t *m, const char *path)
+i2m_err_t io_write_medit(const i2m_tetmesh_t *m, const char *path, const i2m_write_opts_t *opts)
 {
+  (void)opts;
   int64_t *pairs = NULL, npairs = 0;
   int32_t *tri_pair = NULL;
   io_out_t o;

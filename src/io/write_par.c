@@ -51,13 +51,14 @@ static int wide_labels(const i2m_par_t *par, const i2m_tetmesh_t *m)
   return i2m_par_max(par, wide) > 0;
 }
 
-i2m_err_t i2m_mesh_write_par(const i2m_par_t *par, i2m_tetmesh_t **m, const char *path)
+i2m_err_t i2m_mesh_write_par(const i2m_par_t *par, i2m_tetmesh_t **m, const char *path, const i2m_write_opts_t *opts)
 {
+  const i2m_write_opts_t o = opts ? *opts : i2m_write_opts_default();
   if (i2m_format_from_path(path) == I2M_FORMAT_PVTU) {
     char piece[4096], source[4096];
     i2m_err_t err = piece_names(path, par->rank, piece, sizeof piece, source, sizeof source);
     const int wide = wide_labels(par, *m);
-    if (err == I2M_OK) err = io_write_vtu_typed(*m, piece, wide);
+    if (err == I2M_OK) err = io_write_vtu_typed(*m, piece, wide, &o);
     err = i2m_par_agree(par, err);
     if (err == I2M_OK && par->rank == 0) err = write_pvtu(path, par->size, wide);
     return i2m_par_agree(par, err);
@@ -68,7 +69,7 @@ i2m_err_t i2m_mesh_write_par(const i2m_par_t *par, i2m_tetmesh_t **m, const char
   i2m_err_t err = I2M_OK;
   if (par->rank == 0) {
     i2m_free(&(*m)->gid); /* (one file: the ids were for stitching) */
-    err = i2m_mesh_write(*m, path);
+    err = i2m_mesh_write(*m, path, &o);
   }
   return i2m_par_agree(par, err);
 }

@@ -59,16 +59,17 @@ static void vtu_block(io_out_t *o, const i2m_tetmesh_t *m, int kind)
   }
 }
 
-i2m_err_t io_write_vtu(const i2m_tetmesh_t *m, const char *path)
+i2m_err_t io_write_vtu(const i2m_tetmesh_t *m, const char *path, const i2m_write_opts_t *opts)
 {
   int wide = 0;
   for (int64_t t = 0; t < m->nt; t++)
     if (m->tet_label[t] < INT32_MIN || m->tet_label[t] > INT32_MAX) wide = 1;
-  return io_write_vtu_typed(m, path, wide);
+  return io_write_vtu_typed(m, path, wide, opts);
 }
 
-i2m_err_t io_write_vtu_typed(const i2m_tetmesh_t *m, const char *path, int wide)
+i2m_err_t io_write_vtu_typed(const i2m_tetmesh_t *m, const char *path, int wide, const i2m_write_opts_t *opts)
 {
+  (void)opts; /* (compression: to come) */
   int kinds[6] = {VTU_POINTS, VTU_CONN, VTU_OFFSETS, VTU_TYPES, wide ? VTU_MAT64 : VTU_MAT32, VTU_GID};
   const int nk = m->gid ? 6 : 5; /* (a piece of a distributed mesh: its vertices' global ids) */
   uint64_t off[6], acc = 0;

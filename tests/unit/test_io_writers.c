@@ -246,7 +246,7 @@ static row_t *rows_ck(const ck_mesh_t *m, int tris)
 static void roundtrip(const i2m_tetmesh_t *m, const char *name, int expect_tris)
 {
   const char *path = tmp_path(name);
-  i2m_err_t err = i2m_mesh_write(m, path);
+  i2m_err_t err = i2m_mesh_write(m, path, NULL);
   if (err != I2M_OK) fprintf(stderr, "write: %s\n", i2m_error_message());
   CU_ASSERT_FATAL(err == I2M_OK);
   ck_mesh_t r;
@@ -340,21 +340,21 @@ static void test_vtu_wide_labels(void)
 static void test_write_errors(void)
 {
   i2m_tetmesh_t *m = small_mesh();
-  CU_ASSERT_EQUAL(i2m_mesh_write(m, tmp_path("x.obj")), I2M_ERR_ARG);
+  CU_ASSERT_EQUAL(i2m_mesh_write(m, tmp_path("x.obj"), NULL), I2M_ERR_ARG);
   CU_ASSERT(strstr(i2m_error_message(), "x.obj") != NULL);
-  CU_ASSERT_EQUAL(i2m_mesh_write(m, "/nonexistent-dir/x.vtu"), I2M_ERR_IO);
+  CU_ASSERT_EQUAL(i2m_mesh_write(m, "/nonexistent-dir/x.vtu", NULL), I2M_ERR_IO);
   CU_ASSERT(strstr(i2m_error_message(), "/nonexistent-dir/x.vtu") != NULL);
   const char *full = tmp_path("full.msh");
   if (symlink("/dev/full", full) == 0) { /* a full disk */
-    CU_ASSERT_EQUAL(i2m_mesh_write(m, full), I2M_ERR_IO);
+    CU_ASSERT_EQUAL(i2m_mesh_write(m, full, NULL), I2M_ERR_IO);
     CU_ASSERT(strstr(i2m_error_message(), "full.msh") != NULL);
     unlink(full);
   }
   m->tet_label[3] = 0; /* Gmsh physical tags must be positive */
-  CU_ASSERT_EQUAL(i2m_mesh_write(m, tmp_path("zero.msh")), I2M_ERR_UNSUPPORTED);
+  CU_ASSERT_EQUAL(i2m_mesh_write(m, tmp_path("zero.msh"), NULL), I2M_ERR_UNSUPPORTED);
   CU_ASSERT(strstr(i2m_error_message(), "Gmsh can't") != NULL);
   m->tet[5] = (int32_t)m->nv; /* a writer never emits dangling ids */
-  CU_ASSERT_EQUAL(i2m_mesh_write(m, tmp_path("bad.vtu")), I2M_ERR_INTERNAL);
+  CU_ASSERT_EQUAL(i2m_mesh_write(m, tmp_path("bad.vtu"), NULL), I2M_ERR_INTERNAL);
   i2m_tetmesh_destroy(&m);
 }
 
@@ -450,8 +450,8 @@ static i2m_tetmesh_t *piece_of(const i2m_tetmesh_t *m, int64_t t0, int64_t t1, i
 /* Writes the two pieces with the VTU writer and pv.pvtu naming them; reads it back. */
 static i2m_err_t write_read_pieces(i2m_tetmesh_t *const p[2], ck_mesh_t *c)
 {
-  CU_ASSERT_FATAL(i2m_mesh_write(p[0], tmp_path("pv_0.vtu")) == I2M_OK);
-  CU_ASSERT_FATAL(i2m_mesh_write(p[1], tmp_path("pv_1.vtu")) == I2M_OK);
+  CU_ASSERT_FATAL(i2m_mesh_write(p[0], tmp_path("pv_0.vtu"), NULL) == I2M_OK);
+  CU_ASSERT_FATAL(i2m_mesh_write(p[1], tmp_path("pv_1.vtu"), NULL) == I2M_OK);
   FILE *f = fopen(tmp_path("pv.pvtu"), "w");
   CU_ASSERT_FATAL(f != NULL);
   fputs("<?xml version=\"1.0\"?>\n<VTKFile type=\"PUnstructuredGrid\" version=\"1.0\">\n"
@@ -843,11 +843,11 @@ static int write_samples(const char *dir)
   const char *names[3] = {"sample.vtu", "sample.mesh", "sample.msh"};
   for (int i = 0; i < 3; i++) {
     snprintf(path, sizeof path, "%s/%s", dir, names[i]);
-    if (i2m_mesh_write(m, path) != I2M_OK) goto fail;
+    if (i2m_mesh_write(m, path, NULL) != I2M_OK) goto fail;
   }
   setenv("I2M_MSH_ASCII", "1", 1);
   snprintf(path, sizeof path, "%s/sample_ascii.msh", dir);
-  if (i2m_mesh_write(m, path) != I2M_OK) goto fail;
+  if (i2m_mesh_write(m, path, NULL) != I2M_OK) goto fail;
   unsetenv("I2M_MSH_ASCII");
   snprintf(path, sizeof path, "%s/sample.expect", dir);
   FILE *f = fopen(path, "w");
@@ -890,7 +890,7 @@ static int write_big(const char *image, const char *out, int64_t step)
     double t0 = i2m_wtime();
     i2m_tetmesh_t *m = voxel_mesh(sub, 0, NULL);
     double t1 = i2m_wtime();
-    rc = i2m_mesh_write(m, out) != I2M_OK;
+    rc = i2m_mesh_write(m, out, NULL) != I2M_OK;
     if (rc) fprintf(stderr, "test_io_writers: %s\n", i2m_error_message());
     printf("%s: %lld vertices, %lld tets, %lld triangles; built in %.2f s, written in %.2f s\n",
            out, (long long)m->nv, (long long)m->nt, (long long)m->ntri, t1 - t0, i2m_wtime() - t1);

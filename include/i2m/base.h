@@ -176,13 +176,17 @@ void i2m_log(i2m_log_level_t level, const char *fmt, ...) I2M_PRINTF(2, 3);
 #define i2m_warn(...) i2m_log(I2M_LOG_WARN, __VA_ARGS__)
 #define i2m_debug(...) i2m_log(I2M_LOG_DEBUG, __VA_ARGS__)
 
-/** Progress of a long phase: prints "phase: N items, rate/s" at most every @p interval s. */
+/** Progress of a long phase: prints "phase: N items, rate/s, elapsed" on stderr at most every
+ *  @p interval s (2), and "N of TOTAL (P%), ..., about S s left" when the total is known. */
 typedef struct {
   const char *phase; /* borrowed */
   const char *unit;  /* borrowed, e.g. "tets" */
   double t_start, t_last, interval;
+  int64_t total;     /* the count at the end, or 0 when unknown */
 } i2m_progress_t;
 void i2m_progress_begin(i2m_progress_t *p, const char *phase, const char *unit);
+/** The same for a phase whose final count is known (an estimate of the time left is shown). */
+void i2m_progress_begin_total(i2m_progress_t *p, const char *phase, const char *unit, int64_t total);
 /** Cheap to call often: looks at the clock and prints only when the interval has passed. */
 void i2m_progress_update(i2m_progress_t *p, int64_t count);
 void i2m_progress_end(i2m_progress_t *p, int64_t count);

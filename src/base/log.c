@@ -33,14 +33,25 @@ void i2m_progress_begin(i2m_progress_t *p, const char *phase, const char *unit)
   p->unit = unit;
   p->t_start = p->t_last = i2m_wtime();
   p->interval = 2.0;
+  p->total = 0;
+}
+
+void i2m_progress_begin_total(i2m_progress_t *p, const char *phase, const char *unit, int64_t total)
+{
+  i2m_progress_begin(p, phase, unit);
+  p->total = total > 0 ? total : 0;
 }
 
 static void progress_print(const i2m_progress_t *p, int64_t count, double now, const char *tag)
 {
   double dt = now - p->t_start;
   double rate = dt > 0 ? (double)count / dt : 0.0;
-  i2m_info("%s%s: %lld %s, %.3g %s/s, %.1f s", p->phase, tag, (long long)count, p->unit, rate,
-           p->unit, dt);
+  if (p->total > 0 && !*tag && rate > 0) /* (the time left: at the rate so far) */
+    i2m_info("%s: %lld of %lld %s (%.0f%%), %.3g %s/s, %.1f s, about %.0f s left", p->phase, (long long)count,
+             (long long)p->total, p->unit, 100.0 * (double)count / (double)p->total, rate, p->unit, dt,
+             (double)(p->total - count) / rate);
+  else
+    i2m_info("%s%s: %lld %s, %.3g %s/s, %.1f s", p->phase, tag, (long long)count, p->unit, rate, p->unit, dt);
 }
 
 void i2m_progress_update(i2m_progress_t *p, int64_t count)

@@ -48,6 +48,14 @@ static void phase_end(run_t *r, int phase)
             (double)i2m_current_rss_bytes() / 1048576.0, (double)i2m_peak_rss_bytes() / 1048576.0);
 }
 
+/* How the mesh is written: the writers' defaults, changed by the options. */
+static i2m_write_opts_t write_opts(const run_t *r)
+{
+  i2m_write_opts_t wo = i2m_write_opts_default();
+  (void)r;
+  return wo;
+}
+
 /* Every large image component the mesh splits, on stderr (even with --quiet: the mesh is
  * then not what the user expects of it). */
 static void warn_split_components(const run_t *r)
@@ -166,7 +174,8 @@ static i2m_err_t run_mesher(run_t *r)
             o->input, i2m_refine_params(r->ref)->delta);
 
   phase_begin(r, "writing the mesh");
-  I2M_CALL(i2m_mesh_write_par(r->par, &r->mesh, o->output, NULL)); /* (agreed on inside) */
+  const i2m_write_opts_t wo = write_opts(r);
+  I2M_CALL(i2m_mesh_write_par(r->par, &r->mesh, o->output, &wo)); /* (agreed on inside) */
   phase_end(r, I2M_PHASE_WRITE);
   return I2M_OK;
 }

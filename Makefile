@@ -21,13 +21,22 @@
 SHELL := /bin/sh
 
 # ---- dependencies -------------------------------------------------------------------------
-# Checked (and, as root on Debian, installed) once, before the toolchain is detected below:
-# otherwise the first build on a fresh machine would pick `cc` without MPI and only then
-# install MPI.  build/.deps-ok records that the check passed.
-DEPS_STAMP := build/.deps-ok
+# Checked once, before the toolchain is detected below (a fresh machine must not pick `cc`
+# without MPI and only then install MPI).  Building (make, make install) only checks what
+# building needs and never installs anything (tools/ensure-deps.sh build: one line naming what
+# is missing); the goals that run things (check, demo, deps, bench, fuzz) check what they need
+# too and, as root on Debian, install it (tools/ensure-deps.sh all).  The stamps record that a
+# check passed.
+RUN_GOALS := check check-% demo deps bench bench-% fuzz
+ifneq ($(filter $(RUN_GOALS),$(MAKECMDGOALS)),)
+  DEPS_MODE := all
+else
+  DEPS_MODE := build
+endif
+DEPS_STAMP := build/.deps-$(DEPS_MODE)-ok
 ifeq ($(wildcard $(DEPS_STAMP)),)
-  ifneq ($(filter-out clean,$(or $(MAKECMDGOALS),all)),)
-    ifneq ($(shell sh tools/ensure-deps.sh >&2 && mkdir -p build && touch $(DEPS_STAMP) && echo ok),ok)
+  ifneq ($(filter-out clean uninstall print-%,$(or $(MAKECMDGOALS),all)),)
+    ifneq ($(shell sh tools/ensure-deps.sh $(DEPS_MODE) >&2 && mkdir -p build && touch $(DEPS_STAMP) && echo ok),ok)
       $(error missing dependencies (see the line above))
     endif
   endif
@@ -85,6 +94,8 @@ TAG := $(subst $(space),-,$(strip $(if $(filter-out $(DEF_CC_ID),$(CC_ID)),$(CC_
 OMPFLAGS ?= -fopenmp
 FPFLAGS  ?= -ffp-contract=off
 PYTHON   ?= /usr/bin/python3
+OBJCOPY  ?= objcopy
+LD_R     ?= ld -r
 
 # ---- configuration ------------------------------------------------------------------------
 ifdef SANITIZE
@@ -112,9 +123,12 @@ else
   LIBDIR := $(BUILD)/lib
 endif
 
+# position-independent objects: the same objects make libi2m.a and libi2m.so (without semantic
+# interposition where the compiler knows the flag, so that -fPIC costs the kernel nothing)
+PICFLAGS  ?= -fPIC $(if $(shell $(CC) -fno-semantic-interposition -x c -c /dev/null -o /dev/null 2>/dev/null && echo y),-fno-semantic-interposition)
 WARNFLAGS := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes $(if $(WERROR),-Werror)
 CPPFLAGS  += -Iinclude -D_POSIX_C_SOURCE=200809L -DI2M_HAVE_MPI=$(HAVE_MPI)
-ALL_CFLAGS = -std=c11 $(WARNFLAGS) $(OPTFLAGS) $(FPFLAGS) $(OMPFLAGS) -MMD -MP $(CFLAGS)
+ALL_CFLAGS = -std=c11 $(WARNFLAGS) $(OPTFLAGS) $(FPFLAGS) $(OMPFLAGS) $(PICFLAGS) -MMD -MP $(CFLAGS)
 LDLIBS    += -lz -lhwloc -lm
 TEST_LDLIBS := -lcunit
 
@@ -125,10 +139,18 @@ else
 endif
 
 # ---- sources ------------------------------------------------------------------------------
-LAYERS     := base geom image delaunay refine threads dist io
+LAYERS     := base geom image delaunay refine threads dist io api
 LIB_SRC    := $(foreach l,$(LAYERS),$(wildcard src/$(l)/*.c))
 LIB_OBJ    := $(LIB_SRC:%.c=$(BUILD)/%.o)
+# lib/libi2m.a and lib/libi2m.so export only the i2m_ names (the .a holds one object whose other
+# globals are made local; the .so has a version script); the unit tests and fuzzers, which call
+# internals, link every object from $(BUILD)/libi2m-internal.a
 LIB        := $(LIBDIR)/libi2m.a
+SO_VERSION := 0
+VERSION    := 0.1
+SO_NAME    := libi2m.so.$(SO_VERSION)
+SHLIB      := $(LIBDIR)/libi2m.so
+INTERNAL_LIB := $(BUILD)/libi2m-internal.a
 
 CLI_SRC    := $(wildcard src/cli/*.c)
 INFO_SRC   := tools/i2m_info.c
@@ -148,19 +170,19 @@ endif
 
 # ---- build rules --------------------------------------------------------------------------
 .SECONDARY:
-.PHONY: FORCE fuzz fuzz-bin bench-large all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full check-builds bench bench-mpi demo deps clean
+.PHONY: install uninstall FORCE fuzz fuzz-bin bench-large all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full check-builds bench bench-mpi demo deps clean
 
-all: $(PROGRAMS) $(LIB)
-lib: $(LIB)
+all: $(PROGRAMS) $(LIB) $(SHLIB)
+lib: $(LIB) $(SHLIB)
 programs: $(PROGRAMS)
 
 $(DEPS_STAMP):
-	$(Q)sh tools/ensure-deps.sh
+	$(Q)sh tools/ensure-deps.sh $(DEPS_MODE)
 	$(Q)mkdir -p build && touch $@
 
 # the compiler and the flags that change the objects: when they change (MPI installed since,
 # another OPTFLAGS), every object of this build directory is rebuilt
-BUILD_LINE := $(CC) $(CPPFLAGS) $(OPTFLAGS) $(FPFLAGS) $(OMPFLAGS) $(CFLAGS)
+BUILD_LINE := $(CC) $(CPPFLAGS) $(OPTFLAGS) $(FPFLAGS) $(OMPFLAGS) $(PICFLAGS) $(CFLAGS)
 $(BUILD)/.build-line: FORCE | $(DEPS_STAMP)
 	@mkdir -p $(@D)
 	@if [ "$$(cat $@ 2>/dev/null)" != '$(BUILD_LINE)' ]; then echo '$(BUILD_LINE)' > $@; fi
@@ -171,10 +193,29 @@ $(BUILD)/%.o: %.c $(BUILD)/.build-line | $(DEPS_STAMP)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) $(CPPFLAGS) $(ALL_CFLAGS) -c $< -o $@
 
-$(LIB): $(LIB_OBJ)
+$(INTERNAL_LIB): $(LIB_OBJ)
 	@mkdir -p $(@D)
 	@$(if $(Q),echo "  AR      $@")
 	$(Q)rm -f $@ && ar rcs $@ $^
+
+# one relocatable object of the whole library, every global but the i2m_ ones made local
+$(BUILD)/libi2m.o: $(LIB_OBJ)
+	@$(if $(Q),echo "  LD -r   $@")
+	$(Q)$(LD_R) -o $@ $^
+	$(Q)if command -v $(OBJCOPY) >/dev/null 2>&1; then $(OBJCOPY) --wildcard --keep-global-symbol='i2m_*' $@; \
+	  else echo "  (no $(OBJCOPY): $(LIB) also exports the internal names)"; fi
+
+$(LIB): $(BUILD)/libi2m.o
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  AR      $@")
+	$(Q)rm -f $@ && ar rcs $@ $^
+
+$(SHLIB): $(LIB_OBJ) tools/libi2m.map
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) -shared $(ALL_CFLAGS) $(SANFLAGS) -Wl,-soname,$(SO_NAME) -Wl,--version-script=tools/libi2m.map \
+	  -o $(LIBDIR)/$(SO_NAME) $(LIB_OBJ) $(LDFLAGS) $(LDLIBS)
+	$(Q)ln -sf $(SO_NAME) $@
 
 $(BINDIR)/i2m: $(CLI_SRC:%.c=$(BUILD)/%.o) $(LIB)
 	@mkdir -p $(@D)
@@ -196,7 +237,7 @@ $(BINDIR)/i2m-mkimage: $(MKIMG_SRC:%.c=$(BUILD)/%.o) $(LIB)
 	@$(if $(Q),echo "  LD      $@")
 	$(Q)$(CC) $(ALL_CFLAGS) $(SANFLAGS) -o $@ $^ $(LDFLAGS) $(LDLIBS)
 
-$(BUILD)/tests/%: $(BUILD)/tests/unit/%.o $(LIB)
+$(BUILD)/tests/%: $(BUILD)/tests/unit/%.o $(INTERNAL_LIB)
 	@mkdir -p $(@D)
 	@$(if $(Q),echo "  LD      $@")
 	$(Q)$(CC) $(ALL_CFLAGS) $(SANFLAGS) -o $@ $^ $(LDFLAGS) $(LDLIBS) $(TEST_LDLIBS)
@@ -284,10 +325,10 @@ check-tsan:
 FUZZ_SECONDS ?= 60
 FUZZ_BIN := $(patsubst tests/fuzz/%.c,$(BUILD)/fuzz/%,$(wildcard tests/fuzz/fuzz_*.c))
 CHECK_LIB_OBJ := $(filter-out %/check_main.o,$(CHECK_SRC:%.c=$(BUILD)/%.o))
-$(BUILD)/fuzz/%: tests/fuzz/%.c tests/fuzz/fuzz_common.h $(CHECK_LIB_OBJ) $(LIB)
+$(BUILD)/fuzz/%: tests/fuzz/%.c tests/fuzz/fuzz_common.h $(CHECK_LIB_OBJ) $(INTERNAL_LIB)
 	@mkdir -p $(@D)
 	@$(if $(Q),echo "  LD      $@")
-	$(Q)$(CC) $(CPPFLAGS) -Itools/check $(ALL_CFLAGS) -fsanitize=fuzzer,address,undefined -o $@ $< $(CHECK_LIB_OBJ) $(LIB) \
+	$(Q)$(CC) $(CPPFLAGS) -Itools/check $(ALL_CFLAGS) -fsanitize=fuzzer,address,undefined -o $@ $< $(CHECK_LIB_OBJ) $(INTERNAL_LIB) \
 	  $(LDFLAGS) $(LDLIBS)
 fuzz-bin: $(FUZZ_BIN)
 
@@ -312,6 +353,42 @@ bench-mpi: all
 
 demo: all
 	$(Q)sh run/demo.sh
+
+# ---- install ------------------------------------------------------------------------------
+# make install PREFIX=/opt/i2m DESTDIR=/tmp/stage: the programs, libi2m.a and libi2m.so, the
+# public header i2m.h, the pkg-config file i2m.pc (pkg-config --cflags --libs i2m) and the man
+# pages; make uninstall removes them.
+PREFIX     ?= /usr/local
+I_BIN      := $(DESTDIR)$(PREFIX)/bin
+I_LIB      := $(DESTDIR)$(PREFIX)/lib
+I_INC      := $(DESTDIR)$(PREFIX)/include
+I_MAN      := $(DESTDIR)$(PREFIX)/share/man/man1
+I_PC       := $(I_LIB)/pkgconfig
+INSTALLED_PROGRAMS := i2m i2m-check i2m-info
+MAN_PAGES  := $(wildcard docs/man/*.1)
+# the libraries the shared library needs at run time are its own; a static link needs these
+PC_PRIVATE := $(OMPFLAGS) $(filter -L% -l%,$(LDFLAGS) $(LDLIBS)) $(if $(filter 1,$(HAVE_MPI)),$(filter -L% -l% -Wl%,$(shell $(MPICC) -show 2>/dev/null)))
+
+$(BUILD)/i2m.pc: FORCE
+	@mkdir -p $(@D)
+	@printf '%s\n' 'prefix=$(PREFIX)' 'libdir=$${prefix}/lib' 'includedir=$${prefix}/include' '' \
+	  'Name: i2m' 'Description: parallel Delaunay image-to-mesh conversion of labelled 3D images' \
+	  'Version: $(VERSION)' 'Cflags: -I$${includedir}' 'Libs: -L$${libdir} -Wl,-rpath,$${libdir} -li2m' \
+	  'Libs.private: $(strip $(PC_PRIVATE))' > $@
+
+install: all $(BUILD)/i2m.pc
+	install -d $(I_BIN) $(I_LIB) $(I_INC) $(I_MAN) $(I_PC)
+	install -m 755 $(addprefix $(BINDIR)/,$(INSTALLED_PROGRAMS)) $(I_BIN)
+	install -m 644 $(LIB) $(I_LIB)
+	install -m 755 $(LIBDIR)/$(SO_NAME) $(I_LIB)
+	ln -sf $(SO_NAME) $(I_LIB)/libi2m.so
+	install -m 644 include/i2m.h $(I_INC)
+	install -m 644 $(BUILD)/i2m.pc $(I_PC)
+	install -m 644 $(MAN_PAGES) $(I_MAN)
+
+uninstall:
+	rm -f $(addprefix $(I_BIN)/,$(INSTALLED_PROGRAMS)) $(I_LIB)/libi2m.a $(I_LIB)/$(SO_NAME) $(I_LIB)/libi2m.so \
+	  $(I_INC)/i2m.h $(I_PC)/i2m.pc $(addprefix $(I_MAN)/,$(notdir $(MAN_PAGES)))
 
 deps:
 	$(Q)sh tools/ensure-deps.sh

@@ -4,7 +4,7 @@ set -u
 rank() {
   case "$1" in
     base) echo 0;; geom) echo 1;; image) echo 2;; delaunay) echo 3;; refine) echo 4;;
-    threads) echo 5;; dist) echo 6;; io) echo 7;; cli) echo 8;; *) echo -1;;
+    threads) echo 5;; dist) echo 6;; io) echo 7;; api) echo 8;; cli) echo 9;; *) echo -1;;
   esac
 }
 # header -> layer that owns it
@@ -12,7 +12,7 @@ hlayer() {
   case "$1" in
     base.h) echo base;; predicates.h|geometry.h) echo geom;; image.h|edt.h) echo image;;
     dt.h) echo delaunay;; tetmesh.h|refine.h|quality.h) echo refine;; threads.h) echo threads;;
-    dist.h) echo dist;; io.h|report.h) echo io;; *) echo unknown;;
+    dist.h) echo dist;; io.h|report.h) echo io;; pipeline.h) echo api;; *) echo unknown;;
   esac
 }
 bad=0

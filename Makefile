@@ -1,6 +1,9 @@
 # i2m: one non-recursive GNU Makefile (GNU make >= 3.82).
 #
-#   make                 bin/i2m, bin/i2m-info, bin/i2m-check, lib/libi2m.a (release)
+#   make                 bin/i2m, bin/i2m-info, bin/i2m-check, lib/libi2m.a, lib/libi2m.so (release);
+#                        checks what building needs, installs nothing
+#   make install         PREFIX (/usr/local), DESTDIR: programs, libraries, i2m.h, i2m.pc, man
+#                        pages, the Python module; make uninstall
 #   make check           every test: unit tests (release, then ASan+UBSan), tool and script
 #                        tests, threaded tests under ThreadSanitizer, check-builds; installs
 #                        missing Debian packages first when run as root
@@ -170,7 +173,7 @@ endif
 
 # ---- build rules --------------------------------------------------------------------------
 .SECONDARY:
-.PHONY: install uninstall FORCE fuzz fuzz-bin bench-large all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full check-builds bench bench-mpi demo deps clean
+.PHONY: man install uninstall FORCE fuzz fuzz-bin bench-large all lib programs unit-tests mpi-tools check check-unit check-scripts check-layers check-tsan check-full check-builds bench bench-mpi demo deps clean
 
 all: $(PROGRAMS) $(LIB) $(SHLIB)
 lib: $(LIB) $(SHLIB)
@@ -364,8 +367,13 @@ I_LIB      := $(DESTDIR)$(PREFIX)/lib
 I_INC      := $(DESTDIR)$(PREFIX)/include
 I_MAN      := $(DESTDIR)$(PREFIX)/share/man/man1
 I_PC       := $(I_LIB)/pkgconfig
+I_PY       := $(DESTDIR)$(PREFIX)/share/i2m/python
 INSTALLED_PROGRAMS := i2m i2m-check i2m-info
-MAN_PAGES  := $(wildcard docs/man/*.1)
+# the man pages come from the programs' own --help (tools/man.sh)
+MAN_PAGES  := $(addprefix $(BUILD)/man/,$(addsuffix .1,$(INSTALLED_PROGRAMS)))
+MAN_SUMMARY_i2m       := labelled tetrahedral meshes from segmented 3D images
+MAN_SUMMARY_i2m-check := independent checks of a labelled tetrahedral mesh (validity, quality, fidelity)
+MAN_SUMMARY_i2m-info  := what a 3D label image holds (geometry, labels, voxel counts)
 # the libraries the shared library needs at run time are its own; a static link needs these
 PC_PRIVATE := $(OMPFLAGS) $(filter -L% -l%,$(LDFLAGS) $(LDLIBS)) $(if $(filter 1,$(HAVE_MPI)),$(filter -L% -l% -Wl%,$(shell $(MPICC) -show 2>/dev/null)))
 
@@ -376,8 +384,14 @@ $(BUILD)/i2m.pc: FORCE
 	  'Version: $(VERSION)' 'Cflags: -I$${includedir}' 'Libs: -L$${libdir} -Wl,-rpath,$${libdir} -li2m' \
 	  'Libs.private: $(strip $(PC_PRIVATE))' > $@
 
-install: all $(BUILD)/i2m.pc
-	install -d $(I_BIN) $(I_LIB) $(I_INC) $(I_MAN) $(I_PC)
+$(BUILD)/man/%.1: $(BINDIR)/% tools/man.sh
+	@mkdir -p $(@D)
+	$(Q)sh tools/man.sh $< $* "$(MAN_SUMMARY_$*)" > $@
+
+man: $(MAN_PAGES)
+
+install: all $(BUILD)/i2m.pc $(MAN_PAGES)
+	install -d $(I_BIN) $(I_LIB) $(I_INC) $(I_MAN) $(I_PC) $(I_PY)
 	install -m 755 $(addprefix $(BINDIR)/,$(INSTALLED_PROGRAMS)) $(I_BIN)
 	install -m 644 $(LIB) $(I_LIB)
 	install -m 755 $(LIBDIR)/$(SO_NAME) $(I_LIB)
@@ -385,10 +399,12 @@ install: all $(BUILD)/i2m.pc
 	install -m 644 include/i2m.h $(I_INC)
 	install -m 644 $(BUILD)/i2m.pc $(I_PC)
 	install -m 644 $(MAN_PAGES) $(I_MAN)
+	install -m 644 python/i2m.py $(I_PY)
 
 uninstall:
 	rm -f $(addprefix $(I_BIN)/,$(INSTALLED_PROGRAMS)) $(I_LIB)/libi2m.a $(I_LIB)/$(SO_NAME) $(I_LIB)/libi2m.so \
-	  $(I_INC)/i2m.h $(I_PC)/i2m.pc $(addprefix $(I_MAN)/,$(notdir $(MAN_PAGES)))
+	  $(I_INC)/i2m.h $(I_PC)/i2m.pc $(addprefix $(I_MAN)/,$(notdir $(MAN_PAGES))) $(I_PY)/i2m.py
+	-rmdir $(I_PY) $(DESTDIR)$(PREFIX)/share/i2m 2>/dev/null
 
 deps:
 	$(Q)sh tools/ensure-deps.sh

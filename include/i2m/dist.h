@@ -48,6 +48,8 @@ typedef struct {
  *  the environment forces either).  Fails with a clear message when the MPI library gives
  *  less than MPI_THREAD_FUNNELED.  Collective on MPI_COMM_WORLD. */
 i2m_err_t i2m_par_init(int *argc, char ***argv, i2m_par_t *par);
+/** A context of one process that never calls MPI (the library call's; also in MPI builds). */
+void i2m_par_self(i2m_par_t *par);
 /** Frees the communicator and finalises MPI if i2m_par_init started it. */
 void i2m_par_finalize(i2m_par_t *par);
 /** Agrees on an error (collective): every rank returns the error of the lowest rank that

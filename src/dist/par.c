@@ -224,3 +224,12 @@ int i2m_par_bcast_int(const i2m_par_t *par, int x)
 void i2m_par_barrier(const i2m_par_t *par) { (void)par; }
 
 #endif
+
+void i2m_par_self(i2m_par_t *par)
+{
+  memset(par, 0, sizeof *par);
+  par->size = par->local_size = 1;
+#if I2M_HAVE_MPI
+  par->comm = MPI_COMM_NULL;
+#endif
+}

@@ -13,7 +13,9 @@ static void usage(FILE *f)
           "Reads a 3-D label image (NRRD .nrrd/.nhdr, NIfTI-1 .nii/.nii.gz/.hdr, MetaImage\n"
           ".mha/.mhd, Inrimage .inr/.inr.gz) and prints its format, dimensions, voxel type,\n"
           "spacing, origin and direction (world frame LPS, as ITK and 3D Slicer), world\n"
-          "bounding box and the voxel count of every label value.\n"
+          "bounding box and the voxel count of every label value, with its tissue name when the\n"
+          "image has names (a 3D Slicer segmentation .seg.nrrd, or a colour table <stem>.ctbl\n"
+          "beside the image).\n"
           "  --json   print one JSON object instead of text\n"
           "  --allow-external-data  a detached header (.nhdr, .mhd) may name a data file outside\n"
           "           its own directory (refused by default)\n"
@@ -77,7 +79,16 @@ static void print_json(const i2m_image_t *img, i2m_image_format_t fmt)
   for (int l = 0; l < img->nlabels; l++)
     printf("%s\"%lld\": %lld", l ? ", " : "", (long long)img->label_value[l],
            (long long)img->label_count[l]);
-  printf("}}\n");
+  printf("}");
+  if (img->names && img->names->n > 0) {
+    printf(",\n \"label_names\": {");
+    for (int64_t i = 0; i < img->names->n; i++) {
+      printf("%s\"%lld\": ", i ? ", " : "", (long long)img->names->value[i]);
+      json_string(img->names->name[i]);
+    }
+    printf("}");
+  }
+  printf("}\n");
 }
 
 static void print_text(const i2m_image_t *img, i2m_image_format_t fmt)
@@ -99,10 +110,12 @@ static void print_text(const i2m_image_t *img, i2m_image_format_t fmt)
   printf("bounds      x [%.6g, %.6g]  y [%.6g, %.6g]  z [%.6g, %.6g] mm (LPS, outer voxel faces)\n",
          lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]);
   printf("labels      %d values (background 0 included)\n", img->nlabels);
-  printf("  %12s %14s %9s\n", "value", "voxels", "percent");
-  for (int l = 0; l < img->nlabels; l++)
-    printf("  %12lld %14lld %8.4f%%\n", (long long)img->label_value[l],
-           (long long)img->label_count[l], 100.0 * (double)img->label_count[l] / (double)nvox);
+  printf("  %12s %14s %9s%s\n", "value", "voxels", "percent", img->names ? "  name" : "");
+  for (int l = 0; l < img->nlabels; l++) {
+    const char *name = i2m_label_name(img->names, img->label_value[l]);
+    printf("  %12lld %14lld %8.4f%%%s%s\n", (long long)img->label_value[l], (long long)img->label_count[l],
+           100.0 * (double)img->label_count[l] / (double)nvox, name ? "  " : "", name ? name : "");
+  }
 }
 
 int main(int argc, char **argv)

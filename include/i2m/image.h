@@ -44,6 +44,9 @@ typedef struct i2m_image {
   int64_t *label_value;    /**< owned: [nlabels] original label values; [0] = 0 */
   int64_t *label_count;    /**< owned: [nlabels] voxel counts */
   char *path;              /**< owned: file it came from ("" for synthetic images) */
+  struct i2m_label_names *names; /**< owned, or NULL: tissue names of labels present in the image
+                                      (a 3D Slicer segmentation's segment names, or the colour
+                                      table <stem>.ctbl beside the image file) */
 } i2m_image_t;
 
 /** Tissue names of some label values (from a `.ctbl` colour table beside the image, or a 3D
@@ -60,7 +63,10 @@ const char *i2m_label_name(const i2m_label_names_t *names, int64_t value);
 void i2m_label_names_destroy(i2m_label_names_t **names);
 
 /** Reads a label image; the format is chosen by content and extension (.nrrd, .nhdr, .nii,
- *  .nii.gz, .mha, .mhd, .inr, .inr.gz).  On error *out is NULL and the message names the file
+ *  .nii.gz, .mha, .mhd, .inr, .inr.gz; a 3D Slicer segmentation .seg.nrrd is a NRRD file).
+ *  Tissue names come with it (img->names): the segment names of a segmentation, else those of
+ *  a 3D Slicer colour table <stem>.ctbl in the same directory (stem: the file name without its
+ *  image extension), when there is one; a malformed table is ignored with one warning.  On error *out is NULL and the message names the file
  *  and the problem.  Not collective. */
 i2m_err_t i2m_image_read(const char *path, i2m_image_t **out);
 

@@ -2,10 +2,11 @@
  *   .vtu   VTK XML unstructured grid, binary appended data, cell data "material"
  *   .mesh  Medit ASCII: vertices, tetrahedra (ref = label value), interface triangles
  *          (ref = interface number; a comment block maps numbers to label pairs)
- *   .msh   Gmsh 4.1 (binary; ASCII with i2m_write_opts_t.ascii or the environment variable
- *          I2M_MSH_ASCII=1): one physical volume per label ("label_<v>", tag v > 0), one
- *          physical surface per interface pair ("interface_<a>_<b>", tags after the largest
- *          label).
+ *   .msh   Gmsh 4.1 or 2.2 (i2m_write_opts_t.msh_version), binary, or ASCII with
+ *          i2m_write_opts_t.ascii or the environment variable I2M_MSH_ASCII=1: one physical
+ *          volume per label (tag v > 0, named by its tissue name from opts->names, else
+ *          "label_<v>"), one physical surface per interface pair ("interface_<a>_<b>", tags
+ *          after the largest label); in 4.1 each volume entity lists its bounding surfaces.
  * Output is buffered (large fwrite chunks) and every write is checked; a failed write
  * removes the partial file.  bin/i2m-check reads all three back (tools/check). */
 #ifndef I2M_IO_H

@@ -41,11 +41,15 @@ static i2m_pipeline_opts_t pipeline_opts(const cli_options_t *o)
                                .trace = o->trace};
 }
 
-/* How the mesh is written: the writers' defaults, changed by the options. */
+/* How the mesh is written: the writers' defaults, changed by the options; the image's tissue
+ * names (kept when its voxels are released; every rank read the image, so every rank has
+ * them). */
 static i2m_write_opts_t write_opts(const run_t *r)
 {
   i2m_write_opts_t wo = i2m_write_opts_default();
-  (void)r;
+  wo.names = r->img->names;
+  if (r->opt.msh_version) wo.msh_version = r->opt.msh_version;
+  if (r->opt.ascii) wo.ascii = true;
   return wo;
 }
 

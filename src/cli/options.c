@@ -17,7 +17,9 @@ void cli_usage(FILE *f)
           "usage: i2m INPUT -o OUTPUT [options]\n"
           "Meshes a segmented 3D image (every voxel a tissue label) into a conforming tetrahedral mesh.\n"
           "  INPUT                 .nrrd .nhdr .nii .nii.gz .mha .mhd .inr .inr.gz\n"
-          "  -o, --output FILE     .vtu (VTK), .pvtu (VTK pieces: one per MPI rank), .mesh (Medit) or .msh (Gmsh 4.1)\n"
+          "  -o, --output FILE     .vtu (VTK), .pvtu (VTK pieces: one per MPI rank), .mesh (Medit) or .msh (Gmsh)\n"
+          "  --msh-format V        Gmsh file version: 4.1 (default) or 2.2 (.msh output only)\n"
+          "  --ascii               a text Gmsh file instead of binary (.msh output only)\n"
           "  --delta D             surface sampling / fidelity distance in mm (default: max(0.8 x smallest spacing, 0.5 x largest))\n"
           "  --ratio R             radius-edge bound, >= 2 (default 2)\n"
           "  --facet-angle A       minimum planar angle of interface triangles, <= 30 degrees (default 30)\n"
@@ -142,7 +144,7 @@ static bool takes_value(const char *opt)
 {
   static const char *const names[] = {"-o", "--output", "--report", "--trace", "--delta", "--ratio", "--facet-angle",
                                       "--size", "--size-label", "--region", "--seed", "--coarse-factor", "--max-memory",
-                                      "--sliver-angle", "--depth", "--threads"};
+                                      "--sliver-angle", "--depth", "--threads", "--msh-format"};
   for (size_t k = 0; k < sizeof names / sizeof *names; k++)
     if (!strcmp(opt, names[k])) return true;
   return false;
@@ -186,6 +188,9 @@ static i2m_err_t parse_valued(const char *opt, const char *val, cli_options_t *o
     I2M_CHECK(iv >= 1 && iv <= I2M_DT_MAX_OWNERS, I2M_ERR_ARG, "--threads must be between 1 and %u (got %s)",
               I2M_DT_MAX_OWNERS, val);
     o->threads = (int)iv;
+  } else if (!strcmp(opt, "--msh-format")) {
+    I2M_CHECK(!strcmp(val, "4.1") || !strcmp(val, "2.2"), I2M_ERR_ARG, "--msh-format must be 4.1 or 2.2 (got %s)", val);
+    o->msh_version = !strcmp(val, "4.1") ? 41 : 22;
   } else return I2M_ERROR(I2M_ERR_ARG, "unknown option '%s' (see i2m --help)", opt);
   return I2M_OK;
 }
@@ -227,6 +232,7 @@ i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o)
     else if (!strcmp(a, "--no-pin")) o->no_pin = 1;
     else if (!strcmp(a, "--deterministic")) o->deterministic = 1;
     else if (!strcmp(a, "--allow-external-data")) o->allow_external_data = 1;
+    else if (!strcmp(a, "--ascii")) o->ascii = 1;
     else if (a[0] == '-' && a[1] != '\0') {
       I2M_CHECK(takes_value(a), I2M_ERR_ARG, "unknown option '%s' (see i2m --help)", a);
       I2M_CHECK(i + 1 < argc, I2M_ERR_ARG, "option %s needs a value (see i2m --help)", a);
@@ -245,5 +251,8 @@ i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o)
   I2M_CHECK(o->input, I2M_ERR_ARG, "no input image given (usage: i2m INPUT -o OUTPUT; see i2m --help)");
   I2M_CHECK(o->output, I2M_ERR_ARG, "no output file given: add -o OUTPUT.vtu, .mesh or .msh");
   I2M_CALL(i2m_mesh_check_writable(o->output));
+  I2M_CHECK((!o->msh_version && !o->ascii) || i2m_format_from_path(o->output) == I2M_FORMAT_GMSH, I2M_ERR_ARG,
+            "%s applies to Gmsh output only (-o %s is not a .msh file)", o->msh_version ? "--msh-format" : "--ascii",
+            o->output);
   return check_paths(o);
 }

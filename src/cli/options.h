@@ -17,6 +17,8 @@ typedef struct {
   double coarse_factor;
   double max_memory; /* --max-memory in bytes (0: the machine's memory and limits) */
   double sliver_angle; /* 0: no sliver perturbation */
+  int msh_version;     /* --msh-format: 41 or 22 (0: the writers' default) */
+  int ascii;           /* --ascii: a text .msh */
   int help, version;
 } cli_options_t;
 

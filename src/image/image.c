@@ -31,6 +31,7 @@ void i2m_image_destroy(i2m_image_t **img)
   i2m_free(&(*img)->label_value);
   i2m_free(&(*img)->label_count);
   i2m_free(&(*img)->path);
+  i2m_label_names_destroy(&(*img)->names);
   i2m_free(img);
 }
 

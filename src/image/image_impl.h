@@ -140,6 +140,21 @@ int image_count_words(const char *text);
  *  must not make any file on the machine come out as label values. */
 i2m_err_t image_sibling_path(const char *path, const char *file, int allow_external, char *out, size_t cap);
 
+/* ---- tissue names (names.c) ------------------------------------------------------------ */
+
+/** An empty list with room for @p cap names. */
+i2m_err_t image_names_create(int64_t cap, i2m_label_names_t **out);
+/** Appends (value, the first @p len bytes of name); the caller made room. */
+i2m_err_t image_names_add(i2m_label_names_t *names, int64_t value, const char *name, size_t len);
+/** Reads a 3D Slicer colour table (lines "value name r g b a", '#' comments); a malformed
+ *  line or a value named twice is an error naming the line. */
+i2m_err_t image_names_read_ctbl(const char *path, i2m_label_names_t **out);
+/** Drops the names of values the image does not hold. */
+void image_names_keep_present(i2m_label_names_t *names, const i2m_image_t *img);
+/** Unless the image has names: those of <stem>.ctbl beside @p path (the image file) when that
+ *  table exists, kept for the labels present; a malformed table: one warning, no names. */
+void image_attach_ctbl(i2m_image_t *img, const char *path);
+
 /* ---- format readers: @p s is open at offset 0, in gzip mode when the whole file is
  *      compressed; each reader allocates *out and closes nothing ------------------------- */
 i2m_err_t image_read_nrrd(image_stream_t *s, const char *path, i2m_image_t **out);

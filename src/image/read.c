@@ -296,6 +296,7 @@ i2m_err_t i2m_image_read_with(const char *path, const i2m_image_read_opts_t *opt
   s.header_only = opts && opts->header_only;
   if (err == I2M_OK) err = read_detected(&s, path, out, &fmt);
   image_stream_close(&s);
+  if (err == I2M_OK && !(opts && opts->header_only)) image_attach_ctbl(*out, path);
   if (err != I2M_OK) i2m_image_destroy(out);
   if (format) *format = fmt;
   return err;

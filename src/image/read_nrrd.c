@@ -3,7 +3,16 @@
  * spelling of the ten scalar types; little and big endian; "line skip" and "byte skip"
  * (-1: data at the end of a raw file).  Geometry from "space directions" + "space origin" in
  * any 3-D space (RAS and LAS converted to LPS), or from legacy "spacings".  A 4-D image whose
- * extra axis has a single sample is read as 3-D. */
+ * extra axis has a single sample is read as 3-D.
+ *
+ * 3D Slicer segmentations (.seg.nrrd: "SegmentN_Name:=...", "SegmentN_LabelValue:=...",
+ * "SegmentN_Layer:=..." key/value pairs) are read as label images with the segment names as
+ * tissue names.  One layer (3-D data): the voxels hold the label values, kept as they are.
+ * Several layers (4-D data whose first axis, with direction "none", is the layer): each
+ * (layer, LabelValue) segment becomes one label; the values are kept when no two segments
+ * share one, else renumbered 1, 2, ... in the order of the segment index N (segments the
+ * header does not declare after those, by layer and value).  A voxel in segments of several
+ * layers takes the segment of its lowest layer (one warning gives the count). */
 #include "image_impl.h"
 
 #include <math.h>
@@ -11,6 +20,14 @@
 #include <string.h>
 
 #define NRRD_FIELD 4096
+
+/* A segment of a 3D Slicer segmentation, from its SegmentN_ keys. */
+typedef struct {
+  char *name;        /* owned, or NULL: SegmentN_Name (SegmentN_ID when there is no name) */
+  int from_id;       /* name is the ID (a Name key replaces it) */
+  int64_t value;     /* SegmentN_LabelValue (0: not given) */
+  int64_t layer;     /* SegmentN_Layer (default 0) */
+} nrrd_segment_t;
 
 typedef struct {
   char type[128], encoding[64], endian[64], space[128], space_dim[64];
@@ -26,7 +43,63 @@ typedef struct {
   i2m_scalar_t type_id;
   int gzip, big_endian;
   int64_t lskip, bskip;
+  nrrd_segment_t *seg; /* owned: [nseg] segments N = 0 .. nseg - 1 (a segmentation) */
+  int nseg;
+  int64_t layers;      /* a segmentation's layers (4-D: the size of axis 0), else 1 */
 } nrrd_t;
+
+/* ---- 3D Slicer segmentation keys ---- */
+
+/* Segment N of the header, made room for. */
+static i2m_err_t seg_at(nrrd_t *h, const char *path, long n, nrrd_segment_t **out)
+{
+  I2M_CHECK(n >= 0 && n < I2M_MAX_LABELS, I2M_ERR_INPUT, "%s: segment number %ld out of range", path, n);
+  if (n >= h->nseg) {
+    I2M_CALL(i2m_realloc((size_t)n + 1, sizeof *h->seg, &h->seg));
+    memset(h->seg + h->nseg, 0, (size_t)(n + 1 - h->nseg) * sizeof *h->seg);
+    h->nseg = (int)n + 1;
+  }
+  *out = &h->seg[n];
+  return I2M_OK;
+}
+
+static i2m_err_t seg_set_name(nrrd_segment_t *g, const char *value, int from_id)
+{
+  if (g->name && (from_id || !g->from_id)) return I2M_OK; /* (a Name wins over an ID) */
+  i2m_free(&g->name);
+  size_t len = strlen(value) + 1;
+  I2M_CALL(i2m_malloc(len, 1, &g->name));
+  memcpy(g->name, value, len);
+  g->from_id = from_id;
+  return I2M_OK;
+}
+
+/* "SegmentN_Field:=value": the fields i2m uses (others, and every other key, are skipped). */
+static i2m_err_t nrrd_keyvalue(nrrd_t *h, const char *path, const char *key, const char *value)
+{
+  char *end;
+  if (strncmp(key, "Segment", 7) != 0 || key[7] < '0' || key[7] > '9') return I2M_OK;
+  long n = strtol(key + 7, &end, 10);
+  if (*end != '_') return I2M_OK;
+  const char *field = end + 1;
+  int is_name = !strcmp(field, "Name"), is_id = !strcmp(field, "ID");
+  int is_value = !strcmp(field, "LabelValue"), is_layer = !strcmp(field, "Layer");
+  if (!is_name && !is_id && !is_value && !is_layer) return I2M_OK;
+  nrrd_segment_t *g = NULL;
+  I2M_CALL(seg_at(h, path, n, &g));
+  if (is_name || is_id) return seg_set_name(g, value, is_id);
+  int64_t v;
+  I2M_CHECK(image_parse_ints(value, &v, 1) && v >= 0, I2M_ERR_INPUT, "%s: bad %s \"%.40s\"", path, key, value);
+  if (is_value) g->value = v;
+  else g->layer = v;
+  return I2M_OK;
+}
+
+static void nrrd_free(nrrd_t *h)
+{
+  for (int i = 0; i < h->nseg; i++) i2m_free(&h->seg[i].name);
+  i2m_free(&h->seg);
+}
 
 static i2m_err_t nrrd_field(nrrd_t *h, const char *path, const char *key, const char *value)
 {
@@ -79,8 +152,11 @@ static i2m_err_t nrrd_read_header(image_stream_t *s, const char *path, nrrd_t *h
     char *colon = strchr(h->line, ':');
     I2M_CHECK(colon, I2M_ERR_INPUT, "%s: bad NRRD header line \"%.60s\" (expected \"field: value\")",
               path, h->line);
-    if (colon[1] == '=') continue; /* "key:=value" pairs carry no geometry */
     *colon = '\0';
+    if (colon[1] == '=') { /* "key:=value" pairs: only a segmentation's are read */
+      I2M_CALL(nrrd_keyvalue(h, path, h->line, colon + 2));
+      continue;
+    }
     I2M_CALL(nrrd_field(h, path, image_trim(h->line), image_trim(colon + 1)));
   }
 }
@@ -151,13 +227,19 @@ static int nrrd_vectors(const char *text, int naxes, double vec[][3], int *none)
 }
 
 /* Which file axes are i, j, k: all three of a 3-D image, or the 3 of a 4-D one that are not
- * its single-sample axis (preferably one whose direction is "none"). */
+ * its single-sample axis (preferably one whose direction is "none"), or not a segmentation's
+ * layer axis (the first, direction "none"). */
 static i2m_err_t nrrd_axes(nrrd_t *h, const char *path, const int *none)
 {
   int drop = -1;
+  h->layers = 1;
   if (h->dim == 4) {
     for (int a = 0; a < 4; a++)
       if (h->size[a] == 1 && (drop < 0 || (none && none[a]))) drop = a;
+    if (drop < 0 && h->nseg > 0 && (!none || none[0])) {
+      drop = 0;
+      h->layers = h->size[0];
+    }
   }
   I2M_CHECK(h->dim == 3 || drop >= 0, I2M_ERR_UNSUPPORTED,
             "%s: not a 3-D image (dimension: %d, sizes: %s)", path, h->dim, h->sizes);
@@ -335,6 +417,206 @@ static i2m_err_t nrrd_position(nrrd_t *h, image_stream_t *s, const int64_t n[3])
   return image_check_data_size(s, n, h->type_id);
 }
 
+/* ---- segmentations: names and layers ---- */
+
+/* The first declared segment with label value @p value (in layer @p layer, or any when
+ * layer < 0), or -1. */
+static int seg_find(const nrrd_t *h, int64_t layer, int64_t value)
+{
+  for (int i = 0; i < h->nseg; i++)
+    if (value != 0 && h->seg[i].value == value && (layer < 0 || h->seg[i].layer == layer)) return i;
+  return -1;
+}
+
+/* Appends the name of segment @p s (if it has one) for label @p value. */
+static i2m_err_t seg_add_name(const nrrd_t *h, int s, int64_t value, i2m_label_names_t *names)
+{
+  if (s < 0 || !h->seg[s].name || !h->seg[s].name[0]) return I2M_OK;
+  return image_names_add(names, value, h->seg[s].name, strlen(h->seg[s].name));
+}
+
+/* One layer: the label values as they are, named by the segment of that value. */
+static i2m_err_t seg_names_one_layer(const nrrd_t *h, i2m_image_t *img)
+{
+  I2M_CALL(image_names_create(img->nlabels, &img->names));
+  for (int l = 1; l < img->nlabels; l++)
+    I2M_CALL(seg_add_name(h, seg_find(h, -1, img->label_value[l]), img->label_value[l], img->names));
+  return I2M_OK;
+}
+
+/* A (layer, label index) pair present in a layered segmentation: one output label. */
+typedef struct {
+  int64_t key;   /* order: the declared segment N, else nseg + pair */
+  int64_t pair;  /* layer * nlabels + index in the file */
+  int64_t layer; /* layer and label value in the file */
+  int64_t file_value;
+  int segment;   /* declared segment, or -1 */
+  int64_t value; /* output label value */
+  int64_t count; /* voxels that get it */
+  int index;     /* output label index */
+} seg_label_t;
+
+static int cmp_key(const void *a, const void *b)
+{
+  int64_t x = ((const seg_label_t *)a)->key, y = ((const seg_label_t *)b)->key;
+  return (x > y) - (x < y);
+}
+
+static int cmp_value(const void *a, const void *b)
+{
+  int64_t x = ((const seg_label_t *)a)->value, y = ((const seg_label_t *)b)->value;
+  return (x > y) - (x < y);
+}
+
+/* The (layer, index) pairs the layered image @p rd holds: slot[layer * nlabels + index] = 1. */
+static void seg_mark_present(const i2m_image_t *rd, int64_t layers, int32_t *slot)
+{
+  const int64_t nread = rd->n[0] * rd->n[1] * rd->n[2];
+  for (int64_t v = 0; v < nread; v += layers)
+    for (int64_t l = 0; l < layers; l++) {
+      int idx = i2m_image_index(rd, v + l);
+      if (idx != 0) slot[l * rd->nlabels + idx] = 1;
+    }
+}
+
+/* The output labels (*labels, [*nl]) of the present pairs, in key order; slot[] then holds
+ * each pair's position + 1 (0: background or absent). */
+static i2m_err_t seg_labels(const nrrd_t *h, const i2m_image_t *rd, int32_t *slot, seg_label_t **labels, int *nl)
+{
+  const int64_t npairs = h->layers * rd->nlabels;
+  int n = 0;
+  for (int64_t p = 0; p < npairs; p++) n += slot[p] != 0;
+  I2M_CHECK(n < I2M_MAX_LABELS, I2M_ERR_UNSUPPORTED, "%s: %d segments, more than %d", rd->path, n, I2M_MAX_LABELS - 1);
+  I2M_CALL(i2m_calloc((size_t)n + 1, sizeof **labels, labels));
+  seg_label_t *g = *labels;
+  int k = 0;
+  for (int64_t p = 0; p < npairs; p++) {
+    if (!slot[p]) continue;
+    g[k].pair = p;
+    g[k].layer = p / rd->nlabels;
+    g[k].file_value = rd->label_value[p % rd->nlabels];
+    g[k].segment = seg_find(h, g[k].layer, g[k].file_value);
+    g[k].key = g[k].segment >= 0 ? g[k].segment : h->nseg + p;
+    k++;
+  }
+  for (int i = 0; i < n; i++) g[i].value = g[i].file_value;
+  qsort(g, (size_t)n, sizeof *g, cmp_value);
+  int shared = 0; /* do two segments share a label value? */
+  for (int i = 1; i < n; i++) shared |= g[i].value == g[i - 1].value;
+  qsort(g, (size_t)n, sizeof *g, cmp_key);
+  for (int i = 0; i < n; i++) {
+    if (shared) g[i].value = i + 1;
+    slot[g[i].pair] = i + 1;
+  }
+  *nl = n;
+  return I2M_OK;
+}
+
+/* Voxels of the layered image @p rd -> output slots (slot[] of seg_labels) in @p out, the
+ * lowest layer's segment where several layers hold one; counts per slot; returns the number
+ * of such overlapping voxels in *overlaps. */
+static i2m_err_t seg_assign(const i2m_image_t *rd, int64_t layers, const int32_t *slot, seg_label_t *g,
+                            i2m_image_t *out, int64_t *background, int64_t *overlaps)
+{
+  const int64_t nvox = out->n[0] * out->n[1] * out->n[2];
+  *background = *overlaps = 0;
+  for (int64_t v = 0; v < nvox; v++) {
+    int32_t s = 0;
+    int held = 0;
+    for (int64_t l = 0; l < layers; l++) {
+      int idx = i2m_image_index(rd, v * layers + l);
+      if (idx == 0) continue;
+      held++;
+      if (!s) s = slot[l * rd->nlabels + idx];
+    }
+    *overlaps += held > 1;
+    I2M_CALL(image_store_index(out, v, (unsigned)s));
+    if (s) g[s - 1].count++;
+    else (*background)++;
+  }
+  return I2M_OK;
+}
+
+/* The label table of @p out from the slots it holds: index 0 the background, then the
+ * segments with voxels by increasing value; voxels renumbered, names attached. */
+static i2m_err_t seg_label_table(const nrrd_t *h, seg_label_t *g, int n, int64_t background, i2m_image_t *out)
+{
+  uint16_t *remap = NULL; /* [n + 1] slot -> output index */
+  I2M_CALL(i2m_calloc((size_t)n + 1, sizeof *remap, &remap));
+  for (int i = 0; i < n; i++) g[i].index = i + 1; /* (the slot, kept through the sort) */
+  qsort(g, (size_t)n, sizeof *g, cmp_value);
+  int nl = 1;
+  for (int i = 0; i < n; i++) nl += g[i].count > 0;
+  i2m_err_t err = i2m_calloc((size_t)nl, sizeof(int64_t), &out->label_value);
+  if (err == I2M_OK) err = i2m_calloc((size_t)nl, sizeof(int64_t), &out->label_count);
+  if (err == I2M_OK) err = image_names_create(nl, &out->names);
+  if (err == I2M_OK) {
+    out->nlabels = nl;
+    out->label_count[0] = background;
+    for (int i = 0, k = 1; i < n && err == I2M_OK; i++) {
+      if (!g[i].count) continue;
+      remap[g[i].index] = (uint16_t)k;
+      out->label_value[k] = g[i].value;
+      out->label_count[k++] = g[i].count;
+      err = seg_add_name(h, g[i].segment, g[i].value, out->names);
+    }
+  }
+  const int64_t nvox = out->n[0] * out->n[1] * out->n[2];
+  for (int64_t v = 0; err == I2M_OK && v < nvox; v++) err = image_store_index(out, v, remap[i2m_image_index(out, v)]);
+  i2m_free(&remap);
+  return err;
+}
+
+/* A layered segmentation read as one image of layers x n0 x n1 x n2 voxels (@p rd) -> the
+ * label image of n0 x n1 x n2 voxels (*out). */
+static i2m_err_t seg_merge_layers(const nrrd_t *h, const i2m_image_t *rd, const int64_t n[3], i2m_image_t **out)
+{
+  int32_t *slot = NULL; /* [layers][nlabels of rd] */
+  seg_label_t *g = NULL;
+  int ng = 0;
+  int64_t background = 0, overlaps = 0;
+  I2M_CALL(i2m_calloc((size_t)(h->layers * rd->nlabels), sizeof *slot, &slot));
+  seg_mark_present(rd, h->layers, slot);
+  i2m_err_t err = seg_labels(h, rd, slot, &g, &ng);
+  if (err == I2M_OK) err = image_alloc(rd->path, n, out);
+  if (err == I2M_OK) {
+    memcpy((*out)->spacing, rd->spacing, sizeof rd->spacing);
+    memcpy((*out)->origin, rd->origin, sizeof rd->origin);
+    memcpy((*out)->dir, rd->dir, sizeof rd->dir);
+    (*out)->file_type = rd->file_type;
+    err = seg_assign(rd, h->layers, slot, g, *out, &background, &overlaps);
+  }
+  if (err == I2M_OK) err = seg_label_table(h, g, ng, background, *out);
+  if (err == I2M_OK && overlaps)
+    i2m_warn("warning: %s: %lld voxels lie in segments of several layers; each was given the segment of its "
+             "lowest layer", rd->path, (long long)overlaps);
+  i2m_free(&slot);
+  i2m_free(&g);
+  return err;
+}
+
+/* After the voxels: a segmentation's names, and its layers merged into one label image. */
+static i2m_err_t seg_finish(const nrrd_t *h, const image_stream_t *s, const int64_t n[3], i2m_image_t **img)
+{
+  if (s->header_only) {
+    (*img)->n[0] = n[0]; /* (no voxels: only the size changes) */
+    return I2M_OK;
+  }
+  if (h->layers == 1) {
+    I2M_CALL(seg_names_one_layer(h, *img));
+    image_names_keep_present((*img)->names, *img);
+    return I2M_OK;
+  }
+  i2m_image_t *merged = NULL;
+  i2m_err_t err = seg_merge_layers(h, *img, n, &merged);
+  if (err != I2M_OK) {
+    i2m_image_destroy(&merged);
+    return err;
+  }
+  i2m_image_destroy(img);
+  *img = merged;
+  return I2M_OK;
+}
 static i2m_err_t nrrd_read(nrrd_t *h, image_stream_t *s, const char *path, image_stream_t *ds,
                            i2m_image_t **out)
 {
@@ -344,13 +626,18 @@ static i2m_err_t nrrd_read(nrrd_t *h, image_stream_t *s, const char *path, image
   I2M_CALL(nrrd_basic(h, path));
   I2M_CALL(nrrd_geometry(h, path, axis, origin));
   for (int c = 0; c < 3; c++) n[c] = h->size[h->ax[c]];
+  I2M_CHECK(h->layers <= ((int64_t)1 << 40) / n[0], I2M_ERR_INPUT, "%s: sizes \"%s\" are too large", path, h->sizes);
+  const int64_t nread[3] = {h->layers * n[0], n[1], n[2]}; /* (a segmentation's layers: i fastest) */
   I2M_CALL(nrrd_open_data(h, path, s->allow_external, ds));
   image_stream_t *data = h->data_file[0] ? ds : s;
-  I2M_CALL(nrrd_position(h, data, n));
-  I2M_CALL(image_alloc(path, n, out));
+  I2M_CALL(nrrd_position(h, data, nread));
+  I2M_CALL(image_alloc(path, nread, out));
+  (*out)->n[0] = n[0]; /* (the geometry's range check is on the spatial size) */
   I2M_CALL(image_set_geometry(*out, axis, origin));
+  (*out)->n[0] = nread[0];
   image_voxels_t vf = {h->type_id, h->big_endian, 0, 1.0, 0.0};
-  return image_read_body(s, data, &vf, *out);
+  I2M_CALL(image_read_body(s, data, &vf, *out));
+  return h->nseg > 0 ? seg_finish(h, s, n, out) : I2M_OK;
 }
 
 i2m_err_t image_read_nrrd(image_stream_t *s, const char *path, i2m_image_t **out)
@@ -362,6 +649,7 @@ i2m_err_t image_read_nrrd(image_stream_t *s, const char *path, i2m_image_t **out
   I2M_CALL(i2m_calloc(1, sizeof *h, &h));
   i2m_err_t err = nrrd_read(h, s, path, &ds, out);
   image_stream_close(&ds);
+  nrrd_free(h);
   i2m_free(&h);
   if (err != I2M_OK) i2m_image_destroy(out);
   return err;

@@ -1,4 +1,5 @@
-/* libFuzzer harness: i2m-check's mesh readers (VTU, Medit, Gmsh 4.1; a .pvtu's own XML). */
+/* libFuzzer harness: i2m-check's mesh readers (VTU, Medit, Gmsh 4.1 and 2.2, ASCII and binary:
+ * the version comes from the content of a .msh; a .pvtu's own XML). */
 #include "check.h"
 #include "fuzz_common.h"
 

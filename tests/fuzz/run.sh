@@ -31,6 +31,12 @@ for ext in vtu mesh msh; do
   seed "$W/m.$ext" $k "$W/seed_mesh"
   k=$((k + 1))
 done
+for v in "2.2" "2.2 --ascii" "4.1 --ascii"; do # (the Gmsh reader's other versions and encodings)
+  f="$W/m$(echo "$v" | tr -d ' .-').msh"
+  # shellcheck disable=SC2086
+  "$BIN/i2m" "$W/m.nrrd" -o "$f" --msh-format $v --quiet --threads 1 || exit 1
+  seed "$f" 2 "$W/seed_mesh"
+done
 
 status=0
 for h in image mesh; do

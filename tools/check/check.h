@@ -1,5 +1,5 @@
 /* i2m-check (tools/check): an independent checker of written meshes.  It reads a mesh file
- * (VTU, Medit, Gmsh 4.1, or the pieces of a .pvtu stitched by global id), recomputes
+ * (VTU, Medit, Gmsh 4.1 or 2.2, or the pieces of a .pvtu stitched by global id), recomputes
  * validity, quality and, with the image, fidelity, with its own geometry code (it never uses
  * src/geom or src/delaunay: it must not share a bug with the mesher).  From libi2m it uses
  * only the base utilities and the image layer (reader, connected components).

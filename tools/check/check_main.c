@@ -11,7 +11,7 @@
 
 static const char *USAGE =
     "usage: i2m-check MESH [--image IMAGE] [--json] [--plot DIR] [thresholds]\n"
-    "  MESH                 .vtu, .mesh (Medit) or .msh (Gmsh 4.1) file, or a .pvtu: its\n"
+    "  MESH                 .vtu, .mesh (Medit) or .msh (Gmsh 4.1 or 2.2) file, or a .pvtu: its\n"
     "                       pieces stitched by GlobalNodeId, the seams checked\n"
     "  --image IMAGE        label image for fidelity figures (NRRD, NIfTI, MetaImage, INR)\n"
     "  --allow-external-data  the image's detached header may name a data file outside its\n"

@@ -8,8 +8,9 @@
  *   .mesh  Medit ASCII: Vertices, Tetrahedra, Triangles, then End (required: a file cut
  *          between sections would otherwise read as a smaller mesh); the comments
  *          "# i2m interface N = labels A B" give each triangle ref its label pair.
- *   .msh   Gmsh 4.1 ASCII or binary: $PhysicalNames ("interface_A_B" names give the pairs),
- *          $Entities (physical tag of each entity), $Nodes, $Elements (tets and triangles).
+ *   .msh   Gmsh 4.1 or 2.2, ASCII or binary: $PhysicalNames ("interface_A_B" names give the
+ *          pairs), $Entities (4.1: physical tag of each entity), $Nodes, $Elements (tets and
+ *          triangles; 2.2: each element's first tag is its physical tag).
  * Every read is bounded by the file size: a truncated or corrupt file gives an error that
  * names the file, never a crash.  Vertex ids are kept as found (validity checks the range). */
 #include "check.h"
@@ -700,6 +701,7 @@ out:
 typedef struct {
   rd_t r;
   int binary;
+  int v22;       /* MSH 2.2 (else 4.1) */
   /* physical names: tag -> pair (dim 2 "interface_A_B") */
   int64_t nphys;
   int64_t *phys; /* owned: [nphys][4] dim, tag, a, b (a = b = -1: not an interface name) */
@@ -800,8 +802,51 @@ static i2m_err_t gm_entities(gm_t *g, ck_mesh_t *m)
   return I2M_OK;
 }
 
+/* The node tag -> index map of the tags tag[0 .. nn-1] (2.2: tags as found). */
+static i2m_err_t gm_node_map(gm_t *g, const int64_t *tag, int64_t nn)
+{
+  int64_t maxtag = 0;
+  for (int64_t i = 0; i < nn; i++) {
+    I2M_CHECK(tag[i] >= 1, I2M_ERR_INPUT, "%s: node tag %lld is not positive", g->r.path, (long long)tag[i]);
+    if (tag[i] > maxtag) maxtag = tag[i];
+  }
+  I2M_CHECK(maxtag <= 8 * nn + 1000000, I2M_ERR_UNSUPPORTED,
+            "%s: node tags up to %lld for %lld nodes are too sparse", g->r.path, (long long)maxtag, (long long)nn);
+  I2M_CALL(i2m_malloc((size_t)maxtag + 1, sizeof(int64_t), &g->node_map));
+  g->max_tag = maxtag;
+  for (int64_t t = 0; t <= maxtag; t++) g->node_map[t] = -1;
+  for (int64_t i = 0; i < nn; i++) {
+    I2M_CHECK(g->node_map[tag[i]] < 0, I2M_ERR_INPUT, "%s: node tag %lld appears twice", g->r.path,
+              (long long)tag[i]);
+    g->node_map[tag[i]] = i;
+  }
+  return I2M_OK;
+}
+
+/* MSH 2.2 $Nodes: the count (text), then each node's tag and coordinates (binary: int32 and
+ * three doubles). */
+static i2m_err_t gm_nodes_22(gm_t *g, ck_mesh_t *m)
+{
+  int64_t nn, *tag = NULL;
+  G_NEED(g, rd_i64(&g->r, &nn) && count_fits(&g->r, nn, 8), "Nodes");
+  if (g->binary) rd_line_end(&g->r);
+  m->nv = nn;
+  I2M_CALL(i2m_malloc((size_t)nn * 3 + 1, sizeof(double), &m->xyz));
+  I2M_CALL(i2m_malloc((size_t)nn + 1, sizeof *tag, &tag));
+  i2m_err_t err = I2M_OK;
+  for (int64_t i = 0; i < nn && err == I2M_OK; i++) {
+    int ok = g_int(g, &tag[i]);
+    for (int a = 0; a < 3; a++) ok = ok && g_dbl(g, &m->xyz[3 * i + a]);
+    if (!ok) err = I2M_ERROR(I2M_ERR_INPUT, "%s: $Nodes: truncated or malformed", g->r.path);
+  }
+  if (err == I2M_OK) err = gm_node_map(g, tag, nn);
+  i2m_free(&tag);
+  return err;
+}
+
 static i2m_err_t gm_nodes(gm_t *g, ck_mesh_t *m)
 {
+  if (g->v22) return gm_nodes_22(g, m);
   int64_t nblk, nn, mintag, maxtag, done = 0;
   G_NEED(g, g_size(g, &nblk) && g_size(g, &nn) && g_size(g, &mintag) && g_size(g, &maxtag),
          "Nodes");
@@ -867,17 +912,99 @@ static int64_t gm_node(const gm_t *g, int64_t t)
   return t >= 1 && t <= g->max_tag ? g->node_map[t] : INT64_MAX;
 }
 
+/* The label pair of the triangles of physical group @p ph (a = c = -1: unknown). */
+static void gm_pair_of(const gm_t *g, int64_t ph, int64_t *a, int64_t *c)
+{
+  *a = *c = -1;
+  for (int64_t k = 0; k < g->nphys; k++)
+    if (g->phys[4 * k] == 2 && g->phys[4 * k + 1] == ph) {
+      *a = g->phys[4 * k + 2];
+      *c = g->phys[4 * k + 3];
+    }
+}
+
+/* Stores one element of @p type with node tags v[] in physical group ph (else entity tag). */
+static void gm_store(const gm_t *g, ck_mesh_t *m, int64_t type, int64_t ph, int64_t tag, const int64_t *v)
+{
+  if (type == 4) {
+    for (int j = 0; j < 4; j++) m->tet[4 * m->nt + j] = gm_node(g, v[j]);
+    m->tet_label[m->nt++] = ph ? ph : tag;
+  } else if (type == 2) {
+    int64_t a, c;
+    gm_pair_of(g, ph, &a, &c);
+    if (a < 0) m->tri_labels_known = 0;
+    for (int j = 0; j < 3; j++) m->tri[3 * m->ntri + j] = gm_node(g, v[j]);
+    m->tri_label[2 * m->ntri] = a;
+    m->tri_label[2 * m->ntri + 1] = c;
+    m->ntri++;
+  } else {
+    m->ignored_cells++;
+  }
+}
+
+static i2m_err_t gm_alloc_elements(gm_t *g, ck_mesh_t *m, int64_t ne)
+{
+  I2M_CHECK(g->node_map || ne == 0, I2M_ERR_INPUT, "%s: $Elements before $Nodes", g->r.path);
+  I2M_CALL(i2m_malloc((size_t)ne * 4 + 1, sizeof(int64_t), &m->tet));
+  I2M_CALL(i2m_malloc((size_t)ne + 1, sizeof(int64_t), &m->tet_label));
+  I2M_CALL(i2m_malloc((size_t)ne * 3 + 1, sizeof(int64_t), &m->tri));
+  I2M_CALL(i2m_malloc((size_t)ne * 2 + 1, sizeof(int64_t), &m->tri_label));
+  m->tri_labels_known = 1;
+  return I2M_OK;
+}
+
+/* One MSH 2.2 element after its tag: ASCII "type ntags tags... nodes...", binary the tags and
+ * nodes of the block's type. */
+static i2m_err_t gm_element_22(gm_t *g, ck_mesh_t *m, int64_t type, int64_t ntags)
+{
+  int64_t tags[2] = {0, 0}, x, v[10];
+  int per = gm_nodes_per(type);
+  I2M_CHECK(per > 0, I2M_ERR_UNSUPPORTED, "%s: element type %lld not supported", g->r.path, (long long)type);
+  G_NEED(g, ntags >= 0 && count_fits(&g->r, ntags, 2), "Elements");
+  for (int64_t k = 0; k < ntags; k++) {
+    G_NEED(g, g_int(g, &x), "Elements");
+    if (k < 2) tags[k] = x;
+  }
+  for (int j = 0; j < per; j++) G_NEED(g, g_int(g, &v[j]), "Elements");
+  gm_store(g, m, type, tags[0], tags[1], v);
+  return I2M_OK;
+}
+
+/* MSH 2.2 $Elements: the count (text), then ASCII lines "tag type ntags tags... nodes...", or
+ * binary blocks: a header (type, count, ntags) and count elements (tag, tags, nodes). */
+static i2m_err_t gm_elements_22(gm_t *g, ck_mesh_t *m)
+{
+  int64_t ne, id, type, ntags, n;
+  G_NEED(g, rd_i64(&g->r, &ne) && count_fits(&g->r, ne, 8), "Elements");
+  if (g->binary) rd_line_end(&g->r);
+  I2M_CALL(gm_alloc_elements(g, m, ne));
+  for (int64_t seen = 0; seen < ne;) {
+    if (!g->binary) {
+      G_NEED(g, g_int(g, &id) && g_int(g, &type) && g_int(g, &ntags), "Elements");
+      I2M_CALL(gm_element_22(g, m, type, ntags));
+      seen++;
+      continue;
+    }
+    G_NEED(g, g_int(g, &type) && g_int(g, &n) && g_int(g, &ntags), "Elements");
+    I2M_CHECK(n >= 0 && n <= ne - seen, I2M_ERR_INPUT, "%s: $Elements: more elements than announced", g->r.path);
+    I2M_CHECK(n > 0, I2M_ERR_INPUT, "%s: $Elements: an empty block", g->r.path);
+    for (int64_t i = 0; i < n; i++) {
+      G_NEED(g, g_int(g, &id), "Elements");
+      I2M_CALL(gm_element_22(g, m, type, ntags));
+    }
+    seen += n;
+  }
+  m->has_tri = m->ntri > 0;
+  return I2M_OK;
+}
+
 static i2m_err_t gm_elements(gm_t *g, ck_mesh_t *m)
 {
+  if (g->v22) return gm_elements_22(g, m);
   int64_t nblk, ne, mn, mx;
   G_NEED(g, g_size(g, &nblk) && g_size(g, &ne) && g_size(g, &mn) && g_size(g, &mx), "Elements");
   G_NEED(g, count_fits(&g->r, ne, 8) && count_fits(&g->r, nblk, 8), "Elements");
-  I2M_CHECK(g->node_map || ne == 0, I2M_ERR_INPUT, "%s: $Elements before $Nodes", g->r.path);
-  I2M_CALL(i2m_malloc((size_t)ne * 4, sizeof(int64_t), &m->tet));
-  I2M_CALL(i2m_malloc((size_t)ne, sizeof(int64_t), &m->tet_label));
-  I2M_CALL(i2m_malloc((size_t)ne * 3, sizeof(int64_t), &m->tri));
-  I2M_CALL(i2m_malloc((size_t)ne * 2, sizeof(int64_t), &m->tri_label));
-  m->tri_labels_known = 1;
+  I2M_CALL(gm_alloc_elements(g, m, ne));
   int64_t seen = 0;
   for (int64_t b = 0; b < nblk; b++) {
     int64_t dim, tag, type, n, id;
@@ -888,30 +1015,12 @@ static i2m_err_t gm_elements(gm_t *g, ck_mesh_t *m)
     I2M_CHECK(n <= ne - seen, I2M_ERR_INPUT, "%s: $Elements: more elements than announced",
               g->r.path);
     seen += n;
-    int64_t ph = gm_entity_phys(g, dim, tag), a = -1, c = -1;
-    if (type == 2) {
-      for (int64_t k = 0; k < g->nphys; k++)
-        if (g->phys[4 * k] == 2 && g->phys[4 * k + 1] == ph) {
-          a = g->phys[4 * k + 2];
-          c = g->phys[4 * k + 3];
-        }
-      if (a < 0 && n > 0) m->tri_labels_known = 0;
-    }
+    const int64_t ph = gm_entity_phys(g, dim, tag);
     for (int64_t i = 0; i < n; i++) {
       int64_t v[10];
       G_NEED(g, g_size(g, &id), "Elements");
       for (int j = 0; j < per; j++) G_NEED(g, g_size(g, &v[j]), "Elements");
-      if (type == 4) {
-        for (int j = 0; j < 4; j++) m->tet[4 * m->nt + j] = gm_node(g, v[j]);
-        m->tet_label[m->nt++] = ph ? ph : tag;
-      } else if (type == 2) {
-        for (int j = 0; j < 3; j++) m->tri[3 * m->ntri + j] = gm_node(g, v[j]);
-        m->tri_label[2 * m->ntri] = a;
-        m->tri_label[2 * m->ntri + 1] = c;
-        m->ntri++;
-      } else {
-        m->ignored_cells++;
-      }
+      gm_store(g, m, type, ph, tag, v);
     }
   }
   m->has_tri = m->ntri > 0;
@@ -925,8 +1034,9 @@ static i2m_err_t gm_format(gm_t *g, ck_mesh_t *m)
   int64_t ft, ds;
   G_NEED(g, rd_word(&g->r, ver, sizeof ver) && rd_i64(&g->r, &ft) && rd_i64(&g->r, &ds),
          "MeshFormat");
-  I2M_CHECK(strcmp(ver, "4.1") == 0, I2M_ERR_UNSUPPORTED,
-            "%s: MSH version %s (only 4.1 is supported)", g->r.path, ver);
+  I2M_CHECK(strcmp(ver, "4.1") == 0 || strcmp(ver, "2.2") == 0, I2M_ERR_UNSUPPORTED,
+            "%s: MSH version %s (only 4.1 and 2.2 are supported)", g->r.path, ver);
+  g->v22 = strcmp(ver, "2.2") == 0;
   I2M_CHECK(ft == 0 || ft == 1, I2M_ERR_INPUT, "%s: bad MSH file type %lld", g->r.path, (long long)ft);
   g->binary = ft == 1;
   if (g->binary) {

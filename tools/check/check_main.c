@@ -10,7 +10,8 @@
 #include <sys/stat.h>
 
 static const char *USAGE =
-    "usage: i2m-check MESH [--image IMAGE] [--json] [--plot DIR] [thresholds]\n"
+    "usage: i2m-check MESH [--image IMAGE] [--json] [--plot DIR [--slice AXIS=V]...]\n"
+    "                 [thresholds]\n"
     "  MESH                 .vtu, .mesh (Medit) or .msh (Gmsh 4.1) file, or a .pvtu: its\n"
     "                       pieces stitched by GlobalNodeId, the seams checked\n"
     "  --image IMAGE        label image for fidelity figures (NRRD, NIfTI, MetaImage, INR)\n"
@@ -19,7 +20,14 @@ static const char *USAGE =
     "  --json               print one JSON object instead of the summary\n"
     "  --no-distances       with --image: volumes, labels and components only (no interface\n"
     "                       distances: seconds instead of a minute on large meshes)\n"
-    "  --plot DIR           write DIR/dihedral_histogram.svg and DIR/cross_section.svg\n"
+    "  --plot DIR           write DIR/dihedral_histogram.svg and cross-sections of the mesh:\n"
+    "                       DIR/cross_section_x.svg, _y.svg, _z.svg (the mid-planes of the\n"
+    "                       image's world box, or of the mesh's box without --image), each\n"
+    "                       label in its own colour (the .ctbl beside the image where they\n"
+    "                       are distinct), axes in world mm, a scale bar, a legend\n"
+    "  --slice AXIS=F       with --plot: cut at a fraction F in 0..1 of that range instead\n"
+    "  --slice AXIS=Cmm     ... or at the world coordinate C in mm (AXIS x, y or z; repeat\n"
+    "                       for more pictures: cross_section_z.svg, cross_section_z_2.svg)\n"
     "thresholds (exit 1 when violated):\n"
     "  --max-ratio R                 radius-edge ratio of every tetrahedron <= R\n"
     "  --min-facet-angle DEG         planar angles of interface triangles >= DEG\n"
@@ -52,6 +60,8 @@ static int parse_num(const char *s, double *v)
 typedef struct {
   const char *mesh, *image, *plot;
   int json, no_distances, allow_external_data;
+  int nslices;
+  ck_slice_t slices[CK_MAX_SLICES];
 } opts_t;
 
 static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
@@ -93,6 +103,12 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
         o->plot = val;
         continue;
       }
+      if (strcmp(a, "--slice") == 0) {
+        char why[256];
+        if (o->nslices == CK_MAX_SLICES) return fail_usage("at most %s --slice options", "16");
+        if (!ck_slice_parse(val, &o->slices[o->nslices++], why, sizeof why)) return fail_usage("%s", why);
+        continue;
+      }
       if (!parse_num(val, &v) || v < 0) return fail_usage("bad value for %s", a);
       if (strcmp(a, "--max-ratio") == 0)
         r->max_ratio = v;
@@ -122,6 +138,7 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
     o->mesh = a;
   }
   if (!o->mesh) return fail_usage("%s", "no mesh file given");
+  if (o->nslices && !o->plot) return fail_usage("%s", "--slice needs --plot DIR");
   if (!o->image && (!isnan(r->max_hausdorff) || !isnan(r->max_volume_error) || r->require_labels >= 0 || r->require_whole >= 0 ||
                     !isnan(r->max_mesh_to_image) || !isnan(r->max_p99)))
     return fail_usage("%s", "the fidelity thresholds (--max-hausdorff, --max-mesh-to-image, --max-p99, "
@@ -196,6 +213,10 @@ static int run(const opts_t *o, ck_result_t *r)
     fprintf(stderr, "i2m-check: %s\n", i2m_error_message());
     goto done;
   }
+  if (ck_slice_check(&m, img, o->slices, o->nslices) != I2M_OK) {
+    fprintf(stderr, "i2m-check: %s\n", i2m_error_message());
+    goto done;
+  }
   r->mesh = &m;
   r->img = img;
   r->t_read = i2m_wtime() - t0;
@@ -221,7 +242,7 @@ static int run(const opts_t *o, ck_result_t *r)
   thresholds(r);
   if (o->plot && r->have_quality) {
     mkdir(o->plot, 0777);
-    if (ck_plot(o->plot, &m, &r->quality, img, o->image) != I2M_OK) goto fail;
+    if (ck_plot(o->plot, &m, &r->quality, img, o->image, o->slices, o->nslices) != I2M_OK) goto fail;
   }
   r->t_total = i2m_wtime() - t0;
   if (o->json)

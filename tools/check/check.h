@@ -16,6 +16,7 @@
 #include "i2m/image.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdio.h>
 
 #define CK_PI 3.14159265358979323846
@@ -208,6 +209,20 @@ void ck_fidelity_whole(ck_fidelity_t *f, int64_t min_voxels);
  *  id; *ncomp number of components. */
 i2m_err_t ck_mesh_components(const ck_mesh_t *m, const ck_topo_t *topo, int64_t **comp,
                              int64_t *ncomp);
+
+/* ---- progress lines of the long phases (progress.c) ---- */
+typedef struct {
+  i2m_progress_t p;
+  _Atomic int64_t done; /* work done so far, added by any thread */
+} ck_progress_t;
+/** The interval between two lines of one phase, in seconds (2 by default; 0: every update). */
+void ck_progress_set_interval(double seconds);
+/** Starts a phase of @p total units (0: unknown). */
+void ck_progress_begin(ck_progress_t *p, const char *phase, const char *unit, int64_t total);
+/** Adds @p n units done; cheap: call it per chunk of work, from any thread (thread 0 prints). */
+void ck_progress_add(ck_progress_t *p, int64_t n);
+/** The closing line ("phase done: ...") when the phase lasted at least the interval. */
+void ck_progress_end(ck_progress_t *p);
 
 /* ---- label colours for the pictures (palette.c) ---- */
 #define CK_NAME_MAX 64

@@ -10,7 +10,7 @@
 #include <sys/stat.h>
 
 static const char *USAGE =
-    "usage: i2m-check MESH [--image IMAGE] [--json] [--plot DIR [--slice AXIS=V]...]\n"
+    "usage: i2m-check MESH [--image IMAGE] [--json] [--plot DIR [--slice AXIS=V]...] [--quiet]\n"
     "                 [thresholds]\n"
     "  MESH                 .vtu, .mesh (Medit) or .msh (Gmsh 4.1) file, or a .pvtu: its\n"
     "                       pieces stitched by GlobalNodeId, the seams checked\n"
@@ -28,6 +28,8 @@ static const char *USAGE =
     "  --slice AXIS=F       with --plot: cut at a fraction F in 0..1 of that range instead\n"
     "  --slice AXIS=Cmm     ... or at the world coordinate C in mm (AXIS x, y or z; repeat\n"
     "                       for more pictures: cross_section_z.svg, cross_section_z_2.svg)\n"
+    "  --quiet              no progress lines on stderr (errors only)\n"
+    "  --progress-interval S  at most one progress line per phase every S seconds (2)\n"
     "thresholds (exit 1 when violated):\n"
     "  --max-ratio R                 radius-edge ratio of every tetrahedron <= R\n"
     "  --min-facet-angle DEG         planar angles of interface triangles >= DEG\n"
@@ -59,7 +61,8 @@ static int parse_num(const char *s, double *v)
 
 typedef struct {
   const char *mesh, *image, *plot;
-  int json, no_distances, allow_external_data;
+  int json, no_distances, allow_external_data, quiet;
+  double progress_interval;
   int nslices;
   ck_slice_t slices[CK_MAX_SLICES];
 } opts_t;
@@ -67,6 +70,7 @@ typedef struct {
 static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
 {
   memset(o, 0, sizeof *o);
+  o->progress_interval = 2.0;
   r->max_ratio = r->min_facet_angle = r->max_hausdorff = r->max_volume_error = NAN;
   r->max_mesh_to_image = r->max_p99 = NAN;
   r->facet_exceptions = 0;
@@ -91,6 +95,10 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
       o->allow_external_data = 1;
       continue;
     }
+    if (strcmp(a, "--quiet") == 0) {
+      o->quiet = 1;
+      continue;
+    }
     if (a[0] == '-' && a[1] == '-') {
       if (i + 1 >= argc) return fail_usage("option %s needs a value", a);
       const char *val = argv[++i];
@@ -107,6 +115,11 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
         char why[256];
         if (o->nslices == CK_MAX_SLICES) return fail_usage("at most %s --slice options", "16");
         if (!ck_slice_parse(val, &o->slices[o->nslices++], why, sizeof why)) return fail_usage("%s", why);
+        continue;
+      }
+      if (strcmp(a, "--progress-interval") == 0) {
+        if (!parse_num(val, &o->progress_interval) || o->progress_interval < 0)
+          return fail_usage("bad value for %s", a);
         continue;
       }
       if (!parse_num(val, &v) || v < 0) return fail_usage("bad value for %s", a);
@@ -272,7 +285,8 @@ int main(int argc, char **argv)
   memset(&r, 0, sizeof r);
   int c = parse_args(argc, argv, &o, &r);
   if (c >= 0) return c;
-  i2m_log_set_level(I2M_LOG_WARN);
+  i2m_log_set_level(o.quiet ? I2M_LOG_WARN : I2M_LOG_INFO); /* INFO: the progress lines */
+  ck_progress_set_interval(o.progress_interval);
   r.mesh_path = o.mesh;
   r.image_path = o.image;
   return run(&o, &r);

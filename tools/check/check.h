@@ -221,6 +221,10 @@ void ck_progress_set_interval(double seconds);
 void ck_progress_begin(ck_progress_t *p, const char *phase, const char *unit, int64_t total);
 /** Adds @p n units done; cheap: call it per chunk of work, from any thread (thread 0 prints). */
 void ck_progress_add(ck_progress_t *p, int64_t n);
+/** Sets the units done (no line): for a phase whose count is known only at its end. */
+void ck_progress_set(ck_progress_t *p, int64_t done);
+/** Sets the units done and prints if the interval has passed: for a loop run by one thread. */
+void ck_progress_to(ck_progress_t *p, int64_t done);
 /** The closing line ("phase done: ...") when the phase lasted at least the interval. */
 void ck_progress_end(ck_progress_t *p);
 

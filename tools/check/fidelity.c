@@ -550,7 +550,7 @@ static i2m_err_t component_pieces(const ck_mesh_t *m, const ck_topo_t *topo, con
   i2m_err_t err = I2M_OK;
   I2M_CALL(i2m_malloc((size_t)(m->nt ? m->nt : 1), sizeof *vt, &vt));
   for (int64_t t = 0; t < m->nt; t++) {
-    if (t % 65536 == 0) ck_progress_add(pr, t + 65536 < m->nt ? 65536 : m->nt - t);
+    if (t % 65536 == 0 && t > 0) ck_progress_to(pr, 2 * m->nt + t);
     const int64_t c = centre_component(m, g, img, runs, t);
     if (c >= 0) vt[nvt++] = (vote_t){comp[t], c, fabs(topo->vol[t])};
   }
@@ -619,17 +619,18 @@ static i2m_err_t label_table(const ck_mesh_t *m, const ck_topo_t *topo, const do
   ck_progress_t pr; /* three passes over the tets: volumes, pieces, circumcentres */
   ck_progress_begin(&pr, "fidelity, label volumes and components (3 passes)", "tets", 3 * m->nt);
   for (int64_t t = 0; t < m->nt; t++) {
-    if (t % 65536 == 0) ck_progress_add(&pr, t + 65536 < m->nt ? 65536 : m->nt - t);
+    if (t % 65536 == 0 && t > 0) ck_progress_to(&pr, t);
     ck_label_t *L = &f->labels[label_slot(f, m->tet_label[t])];
     L->mesh_volume += topo->vol[t];
     L->tets++;
     L->in_mesh = 1;
   }
   I2M_CALL_GOTO(err, out, ck_mesh_components(m, topo, &comp, &ncomp));
-  ck_progress_add(&pr, m->nt);
+  ck_progress_to(&pr, 2 * m->nt);
   for (int64_t t = 0; t < m->nt; t++)
     if (comp[t] == t) f->labels[label_slot(f, m->tet_label[t])].mesh_components++;
   I2M_CALL_GOTO(err, out, component_pieces(m, topo, g, img, runs, comp, f, &pr));
+  ck_progress_set(&pr, 3 * m->nt);
   ck_progress_end(&pr);
   for (int i = 0; i < f->nlabels; i++) {
     ck_label_t *L = &f->labels[i];
@@ -652,13 +653,13 @@ typedef struct {
   ck_bbox_fn bbox;
   const void *ctx;
   ck_progress_t *pr;
-  int64_t n;
+  int64_t *calls;
 } counted_t;
 
 static void counted_bbox(const void *ctx, int64_t i, double lo[3], double hi[3])
 {
   const counted_t *c = ctx;
-  if (i % 65536 == 0) ck_progress_add(c->pr, i + 65536 < c->n ? 65536 : c->n - i);
+  if (++*c->calls % 65536 == 0) ck_progress_to(c->pr, *c->calls);
   c->bbox(c->ctx, i, lo, hi);
 }
 
@@ -667,8 +668,10 @@ static i2m_err_t grid_build_counted(ck_grid_t *g, int64_t n, ck_bbox_fn bbox, co
 {
   ck_progress_t pr;
   ck_progress_begin(&pr, phase, unit, 2 * n);
-  const counted_t c = {bbox, ctx, &pr, n};
+  int64_t calls = 0;
+  const counted_t c = {bbox, ctx, &pr, &calls};
   const i2m_err_t err = ck_grid_build(g, n, counted_bbox, &c);
+  ck_progress_set(&pr, calls);
   ck_progress_end(&pr);
   return err;
 }

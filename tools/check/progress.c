@@ -29,6 +29,17 @@ void ck_progress_add(ck_progress_t *p, int64_t n)
   i2m_progress_update(&p->p, done);
 }
 
+void ck_progress_set(ck_progress_t *p, int64_t done)
+{
+  atomic_store_explicit(&p->done, done, memory_order_relaxed);
+}
+
+void ck_progress_to(ck_progress_t *p, int64_t done)
+{
+  ck_progress_set(p, done);
+  i2m_progress_update(&p->p, done);
+}
+
 void ck_progress_end(ck_progress_t *p)
 {
   i2m_progress_end(&p->p, atomic_load_explicit(&p->done, memory_order_relaxed));

@@ -156,8 +156,8 @@ static i2m_err_t distinct_colours(ck_palette_t *p, int64_t first)
   for (int64_t i = first; i < p->n; i++) {
     if (p->c[i].rgb[0] >= 0) continue;
     int x;
-    do x = (int)((++k * 0x9E3779u) & 0xFFFFFFu);
-    while (bsearch(&x, used, (size_t)nu, sizeof *used, cmp_int));
+    do x = (int)((++k * 0x9E3779u) & 0xFFFFFFu); /* (past 2^24 labels colours must repeat) */
+    while (k < 0x1000000u && bsearch(&x, used, (size_t)nu, sizeof *used, cmp_int));
     p->c[i].rgb[0] = x >> 16, p->c[i].rgb[1] = x >> 8 & 255, p->c[i].rgb[2] = x & 255;
   }
   i2m_free(&used);

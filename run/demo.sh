@@ -24,5 +24,5 @@ cat <<MSG
   report       $OUT/knee_report.json
   check        $OUT/knee_check.txt   ($verdict)
   pictures     $OUT/plots/dihedral_histogram.svg
-               $OUT/plots/cross_section.svg
+               $OUT/plots/cross_section_x.svg, _y.svg, _z.svg
 MSG

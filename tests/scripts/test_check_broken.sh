@@ -180,7 +180,7 @@ run_all() {
   # plots
   rm -rf "$T/plots"
   "$ck" "$T/cube.mesh" --plot "$T/plots" > /dev/null || bad "--plot failed"
-  for s in dihedral_histogram.svg cross_section.svg; do
+  for s in dihedral_histogram.svg cross_section_x.svg cross_section_y.svg cross_section_z.svg; do
     grep -q '</svg>' "$T/plots/$s" 2>/dev/null || bad "--plot: $s missing or incomplete"
   done
 }

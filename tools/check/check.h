@@ -16,6 +16,7 @@
 #include "i2m/image.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdio.h>
 
 #define CK_PI 3.14159265358979323846
@@ -209,9 +210,72 @@ void ck_fidelity_whole(ck_fidelity_t *f, int64_t min_voxels);
 i2m_err_t ck_mesh_components(const ck_mesh_t *m, const ck_topo_t *topo, int64_t **comp,
                              int64_t *ncomp);
 
-/* ---- plots ---- */
-i2m_err_t ck_plot(const char *dir, const ck_mesh_t *m, const ck_quality_t *q,
-                  const i2m_image_t *img, const char *image_path);
+/* ---- progress lines of the long phases (progress.c) ---- */
+typedef struct {
+  i2m_progress_t p;
+  _Atomic int64_t done; /* work done so far, added by any thread */
+} ck_progress_t;
+/** The interval between two lines of one phase, in seconds (2 by default; 0: every update). */
+void ck_progress_set_interval(double seconds);
+/** Starts a phase of @p total units (0: unknown). */
+void ck_progress_begin(ck_progress_t *p, const char *phase, const char *unit, int64_t total);
+/** Adds @p n units done; cheap: call it per chunk of work, from any thread (thread 0 prints). */
+void ck_progress_add(ck_progress_t *p, int64_t n);
+/** Sets the units done (no line): for a phase whose count is known only at its end. */
+void ck_progress_set(ck_progress_t *p, int64_t done);
+/** Sets the units done and prints if the interval has passed: for a loop run by one thread. */
+void ck_progress_to(ck_progress_t *p, int64_t done);
+/** The closing line ("phase done: ...") when the phase lasted at least the interval. */
+void ck_progress_end(ck_progress_t *p);
+
+/* ---- label colours for the pictures (palette.c) ---- */
+#define CK_NAME_MAX 64
+#define CK_MIN_DELTA_E 12.0 /* CIE76 distance in CIELAB: two colours side by side are told apart */
+enum { CK_COLOUR_NONE = 0, CK_COLOUR_TABLE = 1, CK_COLOUR_REPLACED = 2 };
+typedef struct {
+  int64_t value;
+  int rgb[3];
+  int table;               /* CK_COLOUR_TABLE: the colour table's colour; CK_COLOUR_REPLACED: the
+                              table's colour was too close to another label's or the background;
+                              CK_COLOUR_NONE: no table entry */
+  char name[CK_NAME_MAX];  /* from the colour table; "" when none */
+} ck_label_colour_t;
+typedef struct {
+  int64_t n;
+  ck_label_colour_t *c;    /* owned: [n] by increasing value */
+} ck_palette_t;
+
+/** Colours for the distinct label values[n] (increasing), from <image base>.ctbl when there
+ *  is one beside @p image_path (may be NULL): every two of them, and each and the white
+ *  background, distinct (CK_MIN_DELTA_E apart while the gamut allows). */
+i2m_err_t ck_palette_build(const char *image_path, const int64_t *values, int64_t n, ck_palette_t *p);
+/** The entry of @p value, or NULL. */
+const ck_label_colour_t *ck_palette_find(const ck_palette_t *p, int64_t value);
+void ck_palette_free(ck_palette_t *p);
+/** CIE76 colour difference of two sRGB colours (0..255 each). */
+double ck_delta_e(const int a[3], const int b[3]);
+
+/* ---- plots (plot.c) ---- */
+#define CK_MAX_SLICES 16
+/* A cross-section: the plane normal to world axis x, y or z (the mesh file's coordinates). */
+typedef struct {
+  const char *text; /* borrowed: as given ("z=40mm"), for messages */
+  int axis;         /* 0, 1, 2: x, y, z */
+  int in_mm;        /* value is a world coordinate in mm; else a fraction 0..1 of the frame's
+                       range along the axis (the image's world box, or the mesh's box) */
+  double value;
+} ck_slice_t;
+
+/** Parses "AXIS=F" (a fraction 0..1 of the range) or "AXIS=Cmm" (a world coordinate in mm),
+ *  AXIS x, y or z.  0 on a bad value, with the reason in why[cap]. */
+int ck_slice_parse(const char *text, ck_slice_t *s, char *why, size_t cap);
+/** A slice given in mm must lie in the frame's range: an error (I2M_ERR_ARG) names the first
+ *  that does not. */
+i2m_err_t ck_slice_check(const ck_mesh_t *m, const i2m_image_t *img, const ck_slice_t *s, int n);
+/** dir/dihedral_histogram.svg and one cross_section_<axis>.svg per slice (nslices 0: the
+ *  three mid-planes x, y, z); a second slice along one axis is cross_section_<axis>_2.svg. */
+i2m_err_t ck_plot(const char *dir, const ck_mesh_t *m, const ck_quality_t *q, const i2m_image_t *img,
+                  const char *image_path, const ck_slice_t *slices, int nslices);
 
 /* ---- geometry (ck_geom.c) ---- */
 /** Exact sign of det[b-a; c-a; d-a]. */

@@ -10,7 +10,8 @@
 #include <sys/stat.h>
 
 static const char *USAGE =
-    "usage: i2m-check MESH [--image IMAGE] [--json] [--plot DIR] [thresholds]\n"
+    "usage: i2m-check MESH [--image IMAGE] [--json] [--plot DIR [--slice AXIS=V]...] [--quiet]\n"
+    "                 [thresholds]\n"
     "  MESH                 .vtu, .mesh (Medit) or .msh (Gmsh 4.1 or 2.2) file, or a .pvtu: its\n"
     "                       pieces stitched by GlobalNodeId, the seams checked\n"
     "  --image IMAGE        label image for fidelity figures (NRRD, NIfTI, MetaImage, INR)\n"
@@ -19,7 +20,16 @@ static const char *USAGE =
     "  --json               print one JSON object instead of the summary\n"
     "  --no-distances       with --image: volumes, labels and components only (no interface\n"
     "                       distances: seconds instead of a minute on large meshes)\n"
-    "  --plot DIR           write DIR/dihedral_histogram.svg and DIR/cross_section.svg\n"
+    "  --plot DIR           write DIR/dihedral_histogram.svg and cross-sections of the mesh:\n"
+    "                       DIR/cross_section_x.svg, _y.svg, _z.svg (the mid-planes of the\n"
+    "                       image's world box, or of the mesh's box without --image), each\n"
+    "                       label in its own colour (the .ctbl beside the image where they\n"
+    "                       are distinct), axes in world mm, a scale bar, a legend\n"
+    "  --slice AXIS=F       with --plot: cut at a fraction F in 0..1 of that range instead\n"
+    "  --slice AXIS=Cmm     ... or at the world coordinate C in mm (AXIS x, y or z; repeat\n"
+    "                       for more pictures: cross_section_z.svg, cross_section_z_2.svg)\n"
+    "  --quiet              no progress lines on stderr (errors only)\n"
+    "  --progress-interval S  at most one progress line per phase every S seconds (2)\n"
     "thresholds (exit 1 when violated):\n"
     "  --max-ratio R                 radius-edge ratio of every tetrahedron <= R\n"
     "  --min-facet-angle DEG         planar angles of interface triangles >= DEG\n"
@@ -51,12 +61,16 @@ static int parse_num(const char *s, double *v)
 
 typedef struct {
   const char *mesh, *image, *plot;
-  int json, no_distances, allow_external_data;
+  int json, no_distances, allow_external_data, quiet;
+  double progress_interval;
+  int nslices;
+  ck_slice_t slices[CK_MAX_SLICES];
 } opts_t;
 
 static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
 {
   memset(o, 0, sizeof *o);
+  o->progress_interval = 2.0;
   r->max_ratio = r->min_facet_angle = r->max_hausdorff = r->max_volume_error = NAN;
   r->max_mesh_to_image = r->max_p99 = NAN;
   r->facet_exceptions = 0;
@@ -81,6 +95,10 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
       o->allow_external_data = 1;
       continue;
     }
+    if (strcmp(a, "--quiet") == 0) {
+      o->quiet = 1;
+      continue;
+    }
     if (a[0] == '-' && a[1] == '-') {
       if (i + 1 >= argc) return fail_usage("option %s needs a value", a);
       const char *val = argv[++i];
@@ -91,6 +109,17 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
       }
       if (strcmp(a, "--plot") == 0) {
         o->plot = val;
+        continue;
+      }
+      if (strcmp(a, "--slice") == 0) {
+        char why[256];
+        if (o->nslices == CK_MAX_SLICES) return fail_usage("at most %s --slice options", "16");
+        if (!ck_slice_parse(val, &o->slices[o->nslices++], why, sizeof why)) return fail_usage("%s", why);
+        continue;
+      }
+      if (strcmp(a, "--progress-interval") == 0) {
+        if (!parse_num(val, &o->progress_interval) || o->progress_interval < 0)
+          return fail_usage("bad value for %s", a);
         continue;
       }
       if (!parse_num(val, &v) || v < 0) return fail_usage("bad value for %s", a);
@@ -122,6 +151,7 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
     o->mesh = a;
   }
   if (!o->mesh) return fail_usage("%s", "no mesh file given");
+  if (o->nslices && !o->plot) return fail_usage("%s", "--slice needs --plot DIR");
   if (!o->image && (!isnan(r->max_hausdorff) || !isnan(r->max_volume_error) || r->require_labels >= 0 || r->require_whole >= 0 ||
                     !isnan(r->max_mesh_to_image) || !isnan(r->max_p99)))
     return fail_usage("%s", "the fidelity thresholds (--max-hausdorff, --max-mesh-to-image, --max-p99, "
@@ -187,12 +217,26 @@ static int run(const opts_t *o, ck_result_t *r)
   double t0 = i2m_wtime();
   int code = 2;
   memset(&topo, 0, sizeof topo);
+  ck_progress_t pr; /* the readers and validity have no progress of their own: a closing line
+                       when they took longer than the interval */
+  ck_progress_begin(&pr, "reading the mesh", "tets", 0);
   if (ck_mesh_read(o->mesh, &m) != I2M_OK) {
     fprintf(stderr, "i2m-check: %s\n", i2m_error_message());
     return 2;
   }
   const i2m_image_read_opts_t ro = {.allow_external_data = o->allow_external_data != 0};
+  ck_progress_set(&pr, m.nt);
+  ck_progress_end(&pr);
+  ck_progress_begin(&pr, "reading the image", "voxels", 0);
   if (o->image && i2m_image_read_with(o->image, &ro, &img, NULL) != I2M_OK) {
+    fprintf(stderr, "i2m-check: %s\n", i2m_error_message());
+    goto done;
+  }
+  if (img) {
+    ck_progress_set(&pr, img->n[0] * img->n[1] * img->n[2]);
+    ck_progress_end(&pr);
+  }
+  if (ck_slice_check(&m, img, o->slices, o->nslices) != I2M_OK) {
     fprintf(stderr, "i2m-check: %s\n", i2m_error_message());
     goto done;
   }
@@ -200,8 +244,11 @@ static int run(const opts_t *o, ck_result_t *r)
   r->img = img;
   r->t_read = i2m_wtime() - t0;
   double t = i2m_wtime();
+  ck_progress_begin(&pr, "validity", "tets", 0);
   if (ck_validity(&m, &r->validity, &topo) != I2M_OK) goto fail;
   if (ck_stitch_check(&m, &topo, &r->validity) != I2M_OK) goto fail;
+  ck_progress_set(&pr, m.nt);
+  ck_progress_end(&pr);
   r->t_validity = i2m_wtime() - t;
   if (!r->validity.bad_index && !r->validity.nonfinite && m.nt > 0) {
     t = i2m_wtime();
@@ -221,7 +268,7 @@ static int run(const opts_t *o, ck_result_t *r)
   thresholds(r);
   if (o->plot && r->have_quality) {
     mkdir(o->plot, 0777);
-    if (ck_plot(o->plot, &m, &r->quality, img, o->image) != I2M_OK) goto fail;
+    if (ck_plot(o->plot, &m, &r->quality, img, o->image, o->slices, o->nslices) != I2M_OK) goto fail;
   }
   r->t_total = i2m_wtime() - t0;
   if (o->json)
@@ -251,7 +298,8 @@ int main(int argc, char **argv)
   memset(&r, 0, sizeof r);
   int c = parse_args(argc, argv, &o, &r);
   if (c >= 0) return c;
-  i2m_log_set_level(I2M_LOG_WARN);
+  i2m_log_set_level(o.quiet ? I2M_LOG_WARN : I2M_LOG_INFO); /* INFO: the progress lines */
+  ck_progress_set_interval(o.progress_interval);
   r.mesh_path = o.mesh;
   r.image_path = o.image;
   return run(&o, &r);

@@ -129,10 +129,12 @@ static i2m_err_t image_faces(const i2m_image_t *img, vface_t **out, int64_t *nou
 {
   int64_t n = 0;
   *out = NULL;
+  ck_progress_t pr;
+  ck_progress_begin(&pr, "fidelity, image interface faces (2 passes)", "slices", 2 * (img->n[2] + 1));
   for (int pass = 0; pass < 2; pass++) {
     if (pass == 1) I2M_CALL(i2m_malloc((size_t)n, sizeof **out, out));
     n = 0;
-    for (int64_t k = -1; k < img->n[2]; k++)
+    for (int64_t k = -1; k < img->n[2]; k++, ck_progress_add(&pr, 1))
       for (int64_t j = -1; j < img->n[1]; j++)
         for (int64_t i = -1; i < img->n[0]; i++) {
           int l0 = i2m_image_label_voxel(img, i, j, k);
@@ -153,6 +155,7 @@ static i2m_err_t image_faces(const i2m_image_t *img, vface_t **out, int64_t *nou
           }
         }
   }
+  ck_progress_end(&pr);
   *nout = n;
   return I2M_OK;
 }
@@ -312,11 +315,14 @@ static i2m_err_t mesh_to_image(const tctx_t *tc, int64_t ntri, const ck_grid_t *
     for (int64_t s = off[t]; s < off[t + 1]; s++) w[s] = share;
   }
   double sum = 0.0;
+  ck_progress_t pr;
+  ck_progress_begin(&pr, "fidelity, mesh->image distances", "samples", ns);
   CK_OMP("omp parallel for schedule(dynamic, 64) reduction(+ : sum)")
   for (int64_t t = 0; t < ntri; t++) {
     const int32_t *v = tc->v + 3 * t;
     const double *a = tc->g + 3 * v[0], *b = tc->g + 3 * v[1], *c = tc->g + 3 * v[2];
     int64_t n = tri_divisions(a, b, c, h), cnt = off[t + 1] - off[t];
+    if (t % 64 == 0) ck_progress_add(&pr, off[t + 64 < ntri ? t + 64 : ntri] - off[t]); /* per chunk, at its start */
     double prev[3] = {0, 0, 0}, pd = INFINITY, best = -1;
     int64_t hint = -1;
     arg[t] = 0;
@@ -336,6 +342,7 @@ static i2m_err_t mesh_to_image(const tctx_t *tc, int64_t ntri, const ck_grid_t *
       }
     }
   }
+  ck_progress_end(&pr);
   int64_t wt = -1;
   double wmax = -1;
   for (int64_t t = 0; t < ntri; t++)
@@ -399,11 +406,14 @@ static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const ck_grid_t
   I2M_CALL_GOTO(err, fail, i2m_malloc((size_t)nf, sizeof *fmaxd, &fmaxd));
   double sum = 0.0;
   int64_t nchunk = (nf + CK_CHUNK - 1) / CK_CHUNK;
+  ck_progress_t pr;
+  ck_progress_begin(&pr, "fidelity, image->mesh distances", "image faces", nf);
   CK_OMP("omp parallel for schedule(dynamic, 4) reduction(+ : sum)")
   for (int64_t ch = 0; ch < nchunk; ch++) {
     double prev[3] = {0, 0, 0}, pd = INFINITY;
     int64_t hint = -1;
     int64_t end = (ch + 1) * CK_CHUNK < nf ? (ch + 1) * CK_CHUNK : nf;
+    ck_progress_add(&pr, end - ch * CK_CHUNK); /* (counted as the chunk starts) */
     for (int64_t i = ch * CK_CHUNK; i < end; i++) {
       double p[FACE_POINTS][3], m = 0.0;
       int ax = faces[i].axis;
@@ -425,6 +435,7 @@ static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const ck_grid_t
       fmaxd[i] = (float)m;
     }
   }
+  ck_progress_end(&pr);
   *worst = -1;
   double wmax = -1;
   for (int64_t i = 0; i < nf; i++)
@@ -532,13 +543,14 @@ static int64_t centre_component(const ck_mesh_t *m, const double *g, const i2m_i
 
 /* For every image component, the mesh pieces that stand for it (comp: each tet's piece). */
 static i2m_err_t component_pieces(const ck_mesh_t *m, const ck_topo_t *topo, const double *g, const i2m_image_t *img,
-                                  const i2m_components_t *runs, const int64_t *comp, ck_fidelity_t *f)
+                                  const i2m_components_t *runs, const int64_t *comp, ck_fidelity_t *f, ck_progress_t *pr)
 {
   vote_t *vt = NULL;
   int64_t nvt = 0, *pieces = NULL;
   i2m_err_t err = I2M_OK;
   I2M_CALL(i2m_malloc((size_t)(m->nt ? m->nt : 1), sizeof *vt, &vt));
   for (int64_t t = 0; t < m->nt; t++) {
+    if (t % 65536 == 0 && t > 0) ck_progress_to(pr, 2 * m->nt + t);
     const int64_t c = centre_component(m, g, img, runs, t);
     if (c >= 0) vt[nvt++] = (vote_t){comp[t], c, fabs(topo->vol[t])};
   }
@@ -604,16 +616,22 @@ static i2m_err_t label_table(const ck_mesh_t *m, const ck_topo_t *topo, const do
     if (runs->size[r] > L->largest_component) L->largest_component = runs->size[r];
     f->image_components_total++;
   }
+  ck_progress_t pr; /* three passes over the tets: volumes, pieces, circumcentres */
+  ck_progress_begin(&pr, "fidelity, label volumes and components (3 passes)", "tets", 3 * m->nt);
   for (int64_t t = 0; t < m->nt; t++) {
+    if (t % 65536 == 0 && t > 0) ck_progress_to(&pr, t);
     ck_label_t *L = &f->labels[label_slot(f, m->tet_label[t])];
     L->mesh_volume += topo->vol[t];
     L->tets++;
     L->in_mesh = 1;
   }
   I2M_CALL_GOTO(err, out, ck_mesh_components(m, topo, &comp, &ncomp));
+  ck_progress_to(&pr, 2 * m->nt);
   for (int64_t t = 0; t < m->nt; t++)
     if (comp[t] == t) f->labels[label_slot(f, m->tet_label[t])].mesh_components++;
-  I2M_CALL_GOTO(err, out, component_pieces(m, topo, g, img, runs, comp, f));
+  I2M_CALL_GOTO(err, out, component_pieces(m, topo, g, img, runs, comp, f, &pr));
+  ck_progress_set(&pr, 3 * m->nt);
+  ck_progress_end(&pr);
   for (int i = 0; i < f->nlabels; i++) {
     ck_label_t *L = &f->labels[i];
     L->rel_error_pct = L->image_volume > 0 ? 100.0 * (L->mesh_volume - L->image_volume) / L->image_volume
@@ -628,6 +646,36 @@ out:
 }
 
 /* ---- driver ---- */
+
+/* A box callback that also counts the items for a progress line (ck_grid_build goes over the
+ * items twice). */
+typedef struct {
+  ck_bbox_fn bbox;
+  const void *ctx;
+  ck_progress_t *pr;
+  int64_t *calls;
+} counted_t;
+
+static void counted_bbox(const void *ctx, int64_t i, double lo[3], double hi[3])
+{
+  const counted_t *c = ctx;
+  if (++*c->calls % 65536 == 0) ck_progress_to(c->pr, *c->calls);
+  c->bbox(c->ctx, i, lo, hi);
+}
+
+static i2m_err_t grid_build_counted(ck_grid_t *g, int64_t n, ck_bbox_fn bbox, const void *ctx, const char *phase,
+                                    const char *unit)
+{
+  ck_progress_t pr;
+  ck_progress_begin(&pr, phase, unit, 2 * n);
+  int64_t calls = 0;
+  const counted_t c = {bbox, ctx, &pr, &calls};
+  const i2m_err_t err = ck_grid_build(g, n, counted_bbox, &c);
+  ck_progress_set(&pr, calls);
+  ck_progress_end(&pr);
+  return err;
+}
+
 static i2m_err_t build_face_grid(const i2m_image_t *img, const fctx_t *fc, int64_t nf, ck_grid_t *g)
 {
   /* cells of about two of the smallest voxel sizes, at least one voxel, at most 2^23 cells */
@@ -644,7 +692,7 @@ static i2m_err_t build_face_grid(const i2m_image_t *img, const fctx_t *fc, int64
     }
     if (ncell <= (double)((int64_t)1 << 23)) break;
   }
-  return ck_grid_build(g, nf, face_bbox, fc);
+  return grid_build_counted(g, nf, face_bbox, fc, "fidelity, search grid of the image faces (2 passes)", "faces");
 }
 
 static i2m_err_t build_tri_grid(const tctx_t *tc, int64_t ntri, double min_h, ck_grid_t *g)
@@ -671,7 +719,8 @@ static i2m_err_t build_tri_grid(const tctx_t *tc, int64_t ntri, double min_h, ck
     g->lo[k] = lo[k] - 1e-9 * h;
     g->n[k] = (int64_t)((hi[k] - lo[k]) / h) + 1;
   }
-  return ck_grid_build(g, ntri, tri_bbox, tc);
+  return grid_build_counted(g, ntri, tri_bbox, tc, "fidelity, search grid of the mesh interfaces (2 passes)",
+                            "triangles");
 }
 
 /* The shortest run, in mm, of voxel c's label through c along one of the image axes (0 for a

@@ -69,7 +69,10 @@ static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
   q->min_dihedral_tet = q->max_dihedral_tet = q->max_ratio_tet = -1;
   double sum = 0.0;
   int64_t nfin = 0;
+  ck_progress_t pr;
+  ck_progress_begin(&pr, "quality, dihedral angles and radius-edge ratios", "tets", m->nt);
   for (int64_t t = 0; t < m->nt; t++) {
+    if (t % 65536 == 0 && t > 0) ck_progress_to(&pr, t);
     const double *p[4];
     for (int i = 0; i < 4; i++) p[i] = m->xyz + 3 * m->tet[4 * t + i];
     double q4[4][3];
@@ -109,6 +112,8 @@ static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
     }
   }
   q->ratio_mean = nfin ? sum / (double)nfin : 0.0;
+  ck_progress_set(&pr, m->nt);
+  ck_progress_end(&pr);
 }
 
 i2m_err_t ck_quality(const ck_mesh_t *m, const ck_topo_t *topo, double ratio_bound,

@@ -9,6 +9,7 @@
 
 #include "../../tools/check/ck_geom.c"
 #include "../../tools/check/fidelity.c"
+#include "../../tools/check/progress.c"
 #include "../../tools/check/pvtu.c"
 #include "../../tools/check/quality.c"
 #include "../../tools/check/read_mesh.c"

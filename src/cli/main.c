@@ -52,7 +52,7 @@ static void phase_end(run_t *r, int phase)
 static i2m_write_opts_t write_opts(const run_t *r)
 {
   i2m_write_opts_t wo = i2m_write_opts_default();
-  (void)r;
+  wo.compress = !r->opt.vtu_raw;
   return wo;
 }
 

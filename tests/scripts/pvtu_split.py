@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""Splits a .vtu tetrahedral mesh written by i2m (raw or zlib-compressed) into pieces and a .pvtu naming them, as
-`mpirun i2m -o OUT.pvtu` writes them: every piece a VTK XML UnstructuredGrid with appended raw
-data (UInt64 headers), Points Float64, point data GlobalNodeId Int64 (here the vertex's index in
-the input + an offset), connectivity / offsets Int64, types UInt8, cell data "material" (the
-input's type).  Tets go to pieces by the rank of their centroid along the longest axis of the
-mesh's bounding box, so the pieces share the vertices on the seams between them.  Test fixture
-for i2m-check (tests/scripts/test_check_pvtu.sh); the standard library only.
+"""Splits a .vtu tetrahedral mesh written by i2m (raw or zlib-compressed) into pieces and a
+.pvtu naming them, as `mpirun i2m -o OUT.pvtu --vtu-raw` writes them: every piece a VTK XML
+UnstructuredGrid with appended raw data (UInt64 headers), Points Float64, point data
+GlobalNodeId Int64 (here the vertex's index in the input + an offset), connectivity / offsets
+Int64, types UInt8, cell data "material" (the input's type).  Tets go to pieces by the rank of
+their centroid along the longest axis of the mesh's bounding box, so the pieces share the
+vertices on the seams between them.  Test fixture for i2m-check (tests/scripts/test_check_pvtu.sh); the standard library only.
 
   pvtu_split.py IN.vtu OUT.pvtu [--pieces N] [--offset K] [--break KIND]
 

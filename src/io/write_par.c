@@ -20,8 +20,9 @@ static i2m_err_t piece_names(const char *pvtu, int rank, bool interfaces, char *
 }
 
 /* The .pvtu naming the pieces: of the mesh (cell data material) or of its interface
- * triangles (cell data label_a, label_b). */
-static i2m_err_t write_pvtu(const char *path, int pieces, int wide, bool interfaces)
+ * triangles (cell data label_a, label_b); gids: the pieces have the point data GlobalNodeId
+ * (the pieces of a distributed run; not those of one process). */
+static i2m_err_t write_pvtu(const char *path, int pieces, int wide, bool gids, bool interfaces)
 {
   const char *type = wide ? "Int64" : "Int32";
   io_out_t o;
@@ -29,10 +30,12 @@ static i2m_err_t write_pvtu(const char *path, int pieces, int wide, bool interfa
   io_out_printf(&o,
                 "<?xml version=\"1.0\"?>\n"
                 "<VTKFile type=\"PUnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n"
-                "  <PUnstructuredGrid GhostLevel=\"0\">\n"
-                "    <PPointData GlobalIds=\"GlobalNodeId\">\n"
-                "      <PDataArray type=\"Int64\" Name=\"GlobalNodeId\"/>\n"
-                "    </PPointData>\n");
+                "  <PUnstructuredGrid GhostLevel=\"0\">\n");
+  if (gids)
+    io_out_printf(&o,
+                  "    <PPointData GlobalIds=\"GlobalNodeId\">\n"
+                  "      <PDataArray type=\"Int64\" Name=\"GlobalNodeId\"/>\n"
+                  "    </PPointData>\n");
   if (interfaces)
     io_out_printf(&o,
                   "    <PCellData>\n"
@@ -58,13 +61,13 @@ static i2m_err_t write_pvtu(const char *path, int pieces, int wide, bool interfa
 }
 
 /* Rank 0: NAME.pvtu and NAME.interfaces.pvtu. */
-static i2m_err_t write_pvtus(const char *path, int pieces, int wide)
+static i2m_err_t write_pvtus(const char *path, int pieces, int wide, bool gids)
 {
   char companion[4096];
   I2M_CHECK(i2m_mesh_interfaces_path(path, companion, sizeof companion), I2M_ERR_ARG,
             "%s: path too long for its interfaces file", path);
-  I2M_CALL(write_pvtu(path, pieces, wide, false));
-  return write_pvtu(companion, pieces, wide, true);
+  I2M_CALL(write_pvtu(path, pieces, wide, gids, false));
+  return write_pvtu(companion, pieces, wide, gids, true);
 }
 
 /* Does a label need 64 bits (on any rank: the pieces must agree on the type)? */
@@ -83,9 +86,10 @@ i2m_err_t i2m_mesh_write_par(const i2m_par_t *par, i2m_tetmesh_t **m, const char
     char piece[4096], source[4096];
     i2m_err_t err = piece_names(path, par->rank, false, piece, sizeof piece, source, sizeof source);
     const int wide = wide_labels(par, *m);
+    const bool gids = i2m_par_max(par, (*m)->gid != NULL) > 0; /* (the same on every rank) */
     if (err == I2M_OK) err = io_write_vtu_typed(*m, piece, wide, &o);
     err = i2m_par_agree(par, err);
-    if (err == I2M_OK && par->rank == 0) err = write_pvtus(path, par->size, wide);
+    if (err == I2M_OK && par->rank == 0) err = write_pvtus(path, par->size, wide, gids);
     return i2m_par_agree(par, err);
   }
   if (par->size > 1) {

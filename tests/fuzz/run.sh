@@ -1,7 +1,8 @@
 #!/bin/sh
 # make fuzz: each libFuzzer harness of DIR (built by the Makefile with clang, ASan and UBSan)
 # runs SECONDS, seeded with small images in every format i2m reads and with the meshes its
-# writers make (each seed prefixed by the byte that picks its extension, see fuzz_common.h).
+# writers make (VTU compressed and raw; each seed prefixed by the byte that picks its extension,
+# see fuzz_common.h).
 # Prints each harness's executions and coverage; crashes go to DIR/crashes/ (turn each into
 # a regression file under tests/fuzz/regressions/, which make check reads).
 #   sh tests/fuzz/run.sh DIR SECONDS
@@ -31,6 +32,10 @@ for ext in vtu mesh msh; do
   seed "$W/m.$ext" $k "$W/seed_mesh"
   k=$((k + 1))
 done
+# VTU: zlib-compressed (the default, above), raw, and the interfaces file
+"$BIN/i2m" "$W/m.nrrd" -o "$W/m_raw.vtu" --vtu-raw --quiet --threads 1 || exit 1
+seed "$W/m_raw.vtu" 0 "$W/seed_mesh"
+seed "$W/m.interfaces.vtu" 0 "$W/seed_mesh"
 
 status=0
 for h in image mesh; do

@@ -12,9 +12,9 @@
  * a header [blocks, block size, size of the last partial block or 0, compressed size of each
  * block] then the blocks, each compressed on its own); raw with opts->compress false (each
  * array a byte count then the values).  Compressed blocks are made in parallel (independent
- * 1 MiB blocks, zlib level 1: the write phase stays close to the raw one) and held in memory
- * until the XML header, which gives every array's offset, is written; raw arrays are converted
- * chunk by chunk straight into the output buffer. */
+ * 1 MiB blocks at zlib level 1, the quickest level that compresses: a knee mesh comes out 3.7
+ * times smaller) and held in memory until the XML header, which gives every array's offset,
+ * is written; raw arrays are converted chunk by chunk straight into the output buffer. */
 #include "io_impl.h"
 
 #include <stdatomic.h>
@@ -23,7 +23,7 @@
 
 #define VTU_CHUNK 65536                 /* values converted per reserve() (raw) */
 #define VTU_BLOCK ((size_t)1 << 20)     /* bytes per compressed block, before compression */
-#define VTU_ZLEVEL 1                    /* fast: several times quicker than zlib's default 6 */
+#define VTU_ZLEVEL 1                    /* the quickest level (the default, 6, is slower) */
 
 enum { VTK_TRIANGLE = 5, VTK_TETRA = 10 };
 

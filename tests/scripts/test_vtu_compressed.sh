@@ -5,9 +5,10 @@
 #   r.vtu: point, tet and triangle counts equal i2m's --report, the materials are the report's
 #   labels, every triangle's (label_a, label_b) has a < b and both are materials or 0, every
 #   material has interface triangles; the header says vtkZLibDataCompressor (r.vtu: nothing);
-#   meshio reads l.vtu with the same counts and materials;
-#   a mesh written by meshio (its VTU writer: inline base64, zlib by default, UInt32 and UInt64
-#   headers) passes bin/i2m-check with the tet count and per-label volumes of i2m's own file.
+#   meshio reads l.vtu with the same counts;
+#   the mesh written by meshio (inline base64, zlib or not, UInt32 and UInt64 headers) and by
+#   VTK's writer (appended raw or base64, inline base64; zlib or not; UInt32 or UInt64) passes
+#   bin/i2m-check with the tet count and volumes of i2m's own file.
 # p.pvtu and p.interfaces.pvtu (one process) read by VTK's parallel reader with the report's
 # counts.  Python parts skip with one line when vtk or meshio is missing.
 set -u
@@ -85,6 +86,20 @@ def check_pair(mesh, ifaces, rep, tag, parallel=False):
 check_pair("l.vtu", "l.interfaces.vtu", "l.json", "l.vtu (zlib)")
 check_pair("r.vtu", "r.interfaces.vtu", "r.json", "r.vtu (raw)")
 check_pair("p.pvtu", "p.interfaces.pvtu", "p.json", "p.pvtu (pieces)", parallel=True)
+# VTK's own writer, every encoding (its default: appended base64, zlib, UInt32 headers)
+g = read(f"{d}/l.vtu")
+for mode, enc, comp, ht in [(m, e, c, h) for m in ("appended", "binary") for e in ("b64", "raw")
+                            for c in ("zlib", "none") for h in ("UInt32", "UInt64")]:
+    if mode == "binary" and enc == "raw":
+        continue
+    w = vtk.vtkXMLUnstructuredGridWriter()
+    w.SetInputData(g)
+    w.SetFileName(f"{d}/vtkw_{mode}_{enc}_{comp}_{ht}.vtu")
+    w.SetDataModeToAppended() if mode == "appended" else w.SetDataModeToBinary()
+    w.SetEncodeAppendedData(enc == "b64")
+    w.SetCompressorTypeToZLib() if comp == "zlib" else w.SetCompressorTypeToNone()
+    w.SetHeaderTypeToUInt32() if ht == "UInt32" else w.SetHeaderTypeToUInt64()
+    check(w.Write() == 1, f"VTK writes vtkw_{mode}_{enc}_{comp}_{ht}.vtu")
 print("FAILURES" if fails else "all VTK checks passed")
 sys.exit(1 if fails else 0)
 EOF
@@ -109,37 +124,51 @@ for ht in ("UInt32", "UInt64"):
 meshio.vtu.write(f"{d}/meshio_b64.vtu", m, binary=True, compression=None)
 sys.exit(0 if ok else 1)
 EOF
-  # ck FILE [--image ...]: i2m-check's JSON of $T/FILE
-  ck() {
-    f=$1
-    shift
-    "$BIN/i2m-check" "$T/$f" --json "$@" > "$T/$f.json" 2> "$T/$f.err" || bad "i2m-check $f: $(cat "$T/$f.err")"
-  }
-  # per-label volumes (with the image) for meshio's default (zlib, UInt32); the tet count and
-  # the total volume for the other variants
-  ck l.vtu --image "$LIVER" --no-distances
-  for f in meshio_UInt32.vtu meshio_UInt64.vtu meshio_b64.vtu; do
-    grep -q 'compressor="vtkZLibDataCompressor"' "$T/$f" || [ $f = meshio_b64.vtu ] || bad "$f: not compressed by meshio"
-    if [ $f = meshio_UInt32.vtu ]; then ck $f --image "$LIVER" --no-distances; else ck $f; fi
-    "$PY" - "$T/l.vtu.json" "$T/$f.json" <<'EOF' || bad "$f: i2m-check figures differ from l.vtu's"
-import json, sys
-a, b = (json.load(open(p)) for p in sys.argv[1:])
-assert a["valid"] and b["valid"]
-assert a["mesh"]["tetrahedra"] == b["mesh"]["tetrahedra"] > 0, (a["mesh"], b["mesh"])
-va, vb = a["validity"]["total_volume"], b["validity"]["total_volume"]
-assert abs(va - vb) <= 1e-9 * va, (va, vb)
-what = f"total volume {vb:.6g}"
-if b["fidelity"]:
-    va = {l["label"]: l["mesh_volume"] for l in a["fidelity"]["labels"]}
-    vb = {l["label"]: l["mesh_volume"] for l in b["fidelity"]["labels"]}
-    assert va.keys() == vb.keys() and all(abs(va[k] - vb[k]) <= 1e-9 * max(1.0, abs(va[k])) for k in va), (va, vb)
-    what = f"per-label volumes {sorted((k, round(v, 3)) for k, v in vb.items())}"
-print(f"ok   {sys.argv[2].rsplit('/', 1)[-1][:-5]}: valid, {b['mesh']['tetrahedra']} tets as l.vtu, {what}")
-EOF
-  done
 else
   say "SKIP: meshio checks (python3 meshio module missing)"
 fi
+
+# i2m-check judges the files VTK and meshio wrote like i2m's own: valid, the same tets and
+# total volume; per-label volumes (with the image) for the defaults of meshio (inline base64,
+# zlib, UInt32) and of VTK (appended base64, zlib, UInt32)
+# ck FILE [--image ...]: i2m-check's JSON of $T/FILE
+ck() {
+  f=$1
+  shift
+  "$BIN/i2m-check" "$T/$f" --json "$@" > "$T/$f.json" 2> "$T/$f.err" || bad "i2m-check $f: $(cat "$T/$f.err")"
+}
+ck l.vtu --image "$LIVER" --no-distances
+others=""
+for path in "$T"/meshio_*.vtu "$T"/vtkw_*.vtu; do
+  [ -f "$path" ] || continue
+  f=$(basename "$path")
+  case $f in
+    meshio_UInt32.vtu | vtkw_appended_b64_zlib_UInt32.vtu) ck "$f" --image "$LIVER" --no-distances ;;
+    *) ck "$f" ;;
+  esac
+  case $f in *_none_* | meshio_b64.vtu) ;; *) grep -q 'compressor="vtkZLibDataCompressor"' "$path" || bad "$f: not compressed" ;; esac
+  [ -s "$T/$f.json" ] && others="$others $T/$f.json"
+done
+# shellcheck disable=SC2086
+[ -z "$others" ] || "$PY" - "$T/l.vtu.json" $others <<'EOF' || bad "i2m-check figures differ from l.vtu's"
+import json, sys
+a = json.load(open(sys.argv[1]))
+fails = 0
+for path in sys.argv[2:]:
+    b = json.load(open(path))
+    name = path.rsplit('/', 1)[-1][:-5]
+    va, vb = a["validity"]["total_volume"], b["validity"]["total_volume"]
+    ok = a["valid"] and b["valid"] and a["mesh"]["tetrahedra"] == b["mesh"]["tetrahedra"] > 0 and abs(va - vb) <= 1e-9 * va
+    what = f"total volume {vb:.6g}"
+    if b["fidelity"]:
+        la = {l["label"]: l["mesh_volume"] for l in a["fidelity"]["labels"]}
+        lb = {l["label"]: l["mesh_volume"] for l in b["fidelity"]["labels"]}
+        ok = ok and la.keys() == lb.keys() and all(abs(la[k] - lb[k]) <= 1e-9 * max(1.0, abs(la[k])) for k in la)
+        what = f"per-label volumes {sorted((k, round(v, 3)) for k, v in lb.items())}"
+    print(("ok   " if ok else "FAIL ") + f"{name}: valid {b['valid']}, {b['mesh']['tetrahedra']} tets (l.vtu {a['mesh']['tetrahedra']}), {what}")
+    fails += not ok
+sys.exit(1 if fails else 0)
+EOF
 
 # i2m-check on i2m's raw and compressed files: the same tet count as the report
 for f in l r; do

@@ -1,7 +1,7 @@
 /* i2m-check: readers for the mesh files i2m writes (and simple variants of them).
- *   .vtu   VTK XML UnstructuredGrid: appended raw data with UInt32 or UInt64 headers,
- *          inline ascii or base64 DataArrays (the base64 header encoded apart from the data
- *          or with it), each raw or zlib-compressed (compressor="vtkZLibDataCompressor":
+ *   .vtu   VTK XML UnstructuredGrid: appended data (raw or base64, VTK's default) with
+ *          UInt32 or UInt64 headers, inline ascii or base64 DataArrays (the base64 header
+ *          encoded apart from the data or with it), each raw or zlib-compressed (compressor="vtkZLibDataCompressor":
  *          a header [blocks, block size, last partial block size or 0, compressed size of
  *          each block], then the blocks, each inflated on its own).  Tetrahedra (type 10) and
  *          cell data "material" (else the first cell array); other cells are skipped; the
@@ -361,6 +361,7 @@ typedef struct {
   int hsize;        /* 4 or 8 */
   int swap;
   int zlib;         /* compressor="vtkZLibDataCompressor" */
+  int app_base64;   /* <AppendedData encoding="base64">: offsets count base64 characters */
   int64_t max_values; /* no array of this file can hold more values (from the file's size) */
 } vtu_t;
 
@@ -531,7 +532,44 @@ static i2m_err_t vtu_inflate(const vtu_t *x, const vtu_da_t *da, const unsigned 
   return I2M_OK;
 }
 
-/* The bytes of a binary array (appended, or inline base64 decoded into *tmp). */
+/* Decodes an appended base64 array (VTK's default encoding): from its offset, enough base64
+ * characters for hbytes of header then dbytes of data, whether the two were encoded apart
+ * (VTK) or together; the rest of the appended data at most.  *out (owned) replaces the last. */
+static i2m_err_t b64_appended(const vtu_t *x, const vtu_da_t *da, uint64_t hbytes, uint64_t dbytes,
+                              unsigned char **out, size_t *n)
+{
+  const char *p = x->app + da->offset;
+  const uint64_t left = (uint64_t)(x->app_end - p), hchars = (hbytes + 2) / 3 * 4;
+  const uint64_t chars = dbytes > left ? left : hchars + (dbytes + 2) / 3 * 4;
+  i2m_free(out);
+  return b64_decode(p, chars < left ? p + chars : x->app_end, out, n);
+}
+
+/* The header and data of an appended base64 array, decoded into *tmp: the header says how
+ * much data follows (a byte count, or the compressed block sizes). */
+static i2m_err_t vtu_appended_b64(const vtu_t *x, const vtu_da_t *da, unsigned char **tmp, size_t *avail)
+{
+  const uint64_t hs = (uint64_t)x->hsize;
+  uint64_t hbytes = x->zlib ? 3 * hs : hs, dbytes = 0;
+  I2M_CALL(b64_appended(x, da, hbytes, 0, tmp, avail));
+  I2M_CHECK(*avail >= hbytes, I2M_ERR_INPUT, "%s: DataArray %s: truncated", x->path, da->name);
+  if (x->zlib) {
+    const uint64_t nb = vtu_header_value(x, *tmp);
+    I2M_CHECK(nb <= (uint64_t)(x->app_end - x->app) / hs, I2M_ERR_INPUT,
+              "%s: DataArray %s: %llu compressed blocks announced, the file is too short for their sizes", x->path,
+              da->name, (unsigned long long)nb);
+    hbytes += nb * hs;
+    I2M_CALL(b64_appended(x, da, hbytes, 0, tmp, avail));
+    I2M_CHECK(*avail >= hbytes, I2M_ERR_INPUT, "%s: DataArray %s: truncated", x->path, da->name);
+    for (uint64_t b = 0; b < nb && dbytes <= (uint64_t)(x->app_end - x->app); b++)
+      dbytes += vtu_header_value(x, *tmp + (3 + b) * hs);
+  } else {
+    dbytes = vtu_header_value(x, *tmp);
+  }
+  return b64_appended(x, da, hbytes, dbytes, tmp, avail);
+}
+
+/* The bytes of a binary array (appended raw, or base64 decoded into *tmp). */
 static i2m_err_t vtu_binary_source(const vtu_t *x, const vtu_da_t *da, unsigned char **tmp,
                                    const unsigned char **data, size_t *avail)
 {
@@ -541,6 +579,11 @@ static i2m_err_t vtu_binary_source(const vtu_t *x, const vtu_da_t *da, unsigned 
     I2M_CHECK(da->offset >= 0 && da->offset <= x->app_end - x->app, I2M_ERR_INPUT,
               "%s: DataArray %s: offset %lld beyond the end of the appended data", x->path,
               da->name, (long long)da->offset);
+    if (x->app_base64) {
+      I2M_CALL(vtu_appended_b64(x, da, tmp, avail));
+      *data = *tmp;
+      return I2M_OK;
+    }
     *data = (const unsigned char *)x->app + da->offset;
     *avail = (size_t)((const unsigned char *)x->app_end - *data);
     return I2M_OK;
@@ -673,9 +716,11 @@ static i2m_err_t vtu_header(vtu_t *x, const char **xml_end, int64_t *np, int64_t
   if (ad) {
     const char *ae = memchr(ad, '>', (size_t)(x->end - ad));
     I2M_CHECK(ae, I2M_ERR_INPUT, "%s: truncated AppendedData tag", x->path);
-    if (get_attr(ad, ae, "encoding", buf, sizeof buf))
-      I2M_CHECK(strcmp(buf, "raw") == 0, I2M_ERR_UNSUPPORTED,
-                "%s: AppendedData encoding '%s' not supported (raw only)", x->path, buf);
+    if (get_attr(ad, ae, "encoding", buf, sizeof buf)) {
+      I2M_CHECK(strcmp(buf, "raw") == 0 || strcmp(buf, "base64") == 0, I2M_ERR_UNSUPPORTED,
+                "%s: AppendedData encoding '%s' not supported (raw or base64)", x->path, buf);
+      x->app_base64 = strcmp(buf, "base64") == 0;
+    }
     const char *u = memchr(ae, '_', (size_t)(x->end - ae));
     I2M_CHECK(u, I2M_ERR_INPUT, "%s: AppendedData without '_'", x->path);
     x->app = u + 1;
@@ -723,7 +768,7 @@ static i2m_err_t vtu_global_ids(const vtu_t *x, const vtu_da_t *das, int nda, in
 
 static i2m_err_t read_vtu(const char *buf, size_t len, const char *path, ck_mesh_t *m)
 {
-  vtu_t x = {buf, buf + len, path, NULL, NULL, 4, 0, 0, 0};
+  vtu_t x = {buf, buf + len, path, NULL, NULL, 4, 0, 0, 0, 0};
   vtu_da_t das[64];
   int nda = 0;
   const char *xml_end = NULL;

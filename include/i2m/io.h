@@ -1,5 +1,8 @@
 /* i2m io layer (layer 7): mesh writers.  The format follows the output file's extension:
- *   .vtu   VTK XML unstructured grid, binary appended data, cell data "material"
+ *   .vtu   VTK XML unstructured grid, binary appended data (zlib-compressed unless
+ *          i2m_write_opts_t.compress is false), cell data "material"; with the companion
+ *          NAME.interfaces.vtu: the interface triangles, cell data "label_a" < "label_b"
+ *          (the labels on the two sides; normal from a to b)
  *   .mesh  Medit ASCII: vertices, tetrahedra (ref = label value), interface triangles
  *          (ref = interface number; a comment block maps numbers to label pairs)
  *   .msh   Gmsh 4.1 or 2.2 (i2m_write_opts_t.msh_version), binary, or ASCII with
@@ -28,7 +31,8 @@ typedef struct i2m_write_opts {
                                        carry names (Gmsh physical names) */
   int msh_version;                /**< Gmsh: 41 (4.1, the default) or 22 (2.2) */
   bool ascii;                     /**< Gmsh: text instead of binary */
-  bool compress;                  /**< VTU: zlib-compressed appended data (default true) */
+  bool compress;                  /**< VTU: zlib-compressed appended data (default true;
+                                       false: raw) */
 } i2m_write_opts_t;
 
 /** The default write options. */
@@ -41,14 +45,21 @@ i2m_format_t i2m_format_from_path(const char *path);
  *  writable directory, not a directory itself.  Writes nothing. */
 i2m_err_t i2m_mesh_check_writable(const char *path);
 
-/** Writes @p m to @p path in the format given by its extension.  Not collective.
+/** The companion file of interface triangles that a .vtu or .pvtu output comes with:
+ *  NAME.interfaces.vtu (.pvtu) into @p out.  false for other formats or when @p cap is too
+ *  small. */
+bool i2m_mesh_interfaces_path(const char *path, char *out, size_t cap);
+
+/** Writes @p m to @p path in the format given by its extension (a .vtu: and its interfaces
+ *  file, see i2m_mesh_interfaces_path).  Not collective.
  *  @p opts may be NULL (the defaults).  On error the message names the file and the
  *  problem (unknown extension, disk full). */
 i2m_err_t i2m_mesh_write(const i2m_tetmesh_t *m, const char *path, const i2m_write_opts_t *opts);
 
 /** Writes a distributed mesh (each rank's piece, with global vertex ids).  NAME.pvtu: every
  *  rank writes its piece NAME_<rank>.vtu beside it (its tets, material, the point array
- *  GlobalNodeId; no ghost cells) and rank 0 writes the .pvtu that names them.  Any other
+ *  GlobalNodeId; no ghost cells) and NAME_<rank>.interfaces.vtu (its interface triangles),
+ *  and rank 0 writes NAME.pvtu and NAME.interfaces.pvtu that name them.  Any other
  *  format: the pieces are stitched on rank 0 (vertices merged by global id), which writes the
  *  one file; *m on rank 0 is then the whole mesh.  Collective; the same error on every rank. */
 i2m_err_t i2m_mesh_write_par(const i2m_par_t *par, i2m_tetmesh_t **m, const char *path, const i2m_write_opts_t *opts);

@@ -50,6 +50,7 @@ static i2m_write_opts_t write_opts(const run_t *r)
   wo.names = r->img->names;
   if (r->opt.msh_version) wo.msh_version = r->opt.msh_version;
   if (r->opt.ascii) wo.ascii = true;
+  wo.compress = !r->opt.vtu_raw;
   return wo;
 }
 

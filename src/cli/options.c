@@ -17,7 +17,9 @@ void cli_usage(FILE *f)
           "usage: i2m INPUT -o OUTPUT [options]\n"
           "Meshes a segmented 3D image (every voxel a tissue label) into a conforming tetrahedral mesh.\n"
           "  INPUT                 .nrrd .nhdr .nii .nii.gz .mha .mhd .inr .inr.gz\n"
-          "  -o, --output FILE     .vtu (VTK), .pvtu (VTK pieces: one per MPI rank), .mesh (Medit) or .msh (Gmsh)\n"
+          "  -o, --output FILE     .vtu (VTK), .pvtu (VTK pieces: one per MPI rank), .mesh (Medit) or .msh (Gmsh);\n"
+          "                        a .vtu (.pvtu) comes with FILE.interfaces.vtu (.pvtu): the interface triangles\n"
+          "  --vtu-raw             VTU data not compressed (default: zlib)\n"
           "  --msh-format V        Gmsh file version: 4.1 (default) or 2.2 (.msh output only)\n"
           "  --ascii               a text Gmsh file instead of binary (.msh output only)\n"
           "  --delta D             surface sampling / fidelity distance in mm (default: max(0.8 x smallest spacing, 0.5 x largest))\n"
@@ -197,12 +199,13 @@ static i2m_err_t parse_valued(const char *opt, const char *val, cli_options_t *o
 
 /* The files a run writes are not the input nor one another (compared as files, not as
  * strings), and the report is JSON: a slip of the keyboard must not replace a segmentation
- * or a mesh. */
-static i2m_err_t check_paths(const cli_options_t *o)
+ * or a mesh.  interfaces: the companion file of a .vtu or .pvtu output, or NULL. */
+static i2m_err_t check_paths(const cli_options_t *o, const char *interfaces)
 {
   const struct {
     const char *opt, *path;
-  } f[] = {{"the input", o->input}, {"-o", o->output}, {"--report", o->report}, {"--trace", o->trace}};
+  } f[] = {{"the input", o->input}, {"-o", o->output}, {"--report", o->report}, {"--trace", o->trace},
+           {"the interfaces file of -o", interfaces}};
   const size_t n = sizeof f / sizeof *f;
   for (size_t i = 0; i < n; i++)
     for (size_t j = i + 1; j < n; j++)
@@ -233,6 +236,7 @@ i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o)
     else if (!strcmp(a, "--deterministic")) o->deterministic = 1;
     else if (!strcmp(a, "--allow-external-data")) o->allow_external_data = 1;
     else if (!strcmp(a, "--ascii")) o->ascii = 1;
+    else if (!strcmp(a, "--vtu-raw")) o->vtu_raw = 1;
     else if (a[0] == '-' && a[1] != '\0') {
       I2M_CHECK(takes_value(a), I2M_ERR_ARG, "unknown option '%s' (see i2m --help)", a);
       I2M_CHECK(i + 1 < argc, I2M_ERR_ARG, "option %s needs a value (see i2m --help)", a);
@@ -254,5 +258,8 @@ i2m_err_t cli_parse(int argc, char **argv, cli_options_t *o)
   I2M_CHECK((!o->msh_version && !o->ascii) || i2m_format_from_path(o->output) == I2M_FORMAT_GMSH, I2M_ERR_ARG,
             "%s applies to Gmsh output only (-o %s is not a .msh file)", o->msh_version ? "--msh-format" : "--ascii",
             o->output);
-  return check_paths(o);
+  char interfaces[4096];
+  const bool companion = i2m_mesh_interfaces_path(o->output, interfaces, sizeof interfaces);
+  if (companion) I2M_CALL(i2m_mesh_check_writable(interfaces));
+  return check_paths(o, companion ? interfaces : NULL);
 }

@@ -13,6 +13,7 @@ typedef struct {
   i2m_region_t regions[I2M_MAX_LIST];
   int quiet, verbose, check, threads, no_pin, deterministic;
   int allow_external_data; /* --allow-external-data */
+  int vtu_raw;         /* --vtu-raw: VTU data not compressed */
   int depth;           /* the octree's depth (0: the default) */
   double coarse_factor;
   double max_memory; /* --max-memory in bytes (0: the machine's memory and limits) */

@@ -1,7 +1,8 @@
 #!/bin/sh
 # make fuzz: each libFuzzer harness of DIR (built by the Makefile with clang, ASan and UBSan)
 # runs SECONDS, seeded with small images in every format i2m reads and with the meshes its
-# writers make (each seed prefixed by the byte that picks its extension, see fuzz_common.h).
+# writers make (VTU compressed and raw, and VTK's writer's; each seed prefixed by the byte that
+# picks its extension, see fuzz_common.h).
 # Prints each harness's executions and coverage; crashes go to DIR/crashes/ (turn each into
 # a regression file under tests/fuzz/regressions/, which make check reads).
 #   sh tests/fuzz/run.sh DIR SECONDS
@@ -37,6 +38,18 @@ for v in "2.2" "2.2 --ascii" "4.1 --ascii"; do # (the Gmsh reader's other versio
   "$BIN/i2m" "$W/m.nrrd" -o "$f" --msh-format $v --quiet --threads 1 || exit 1
   seed "$f" 2 "$W/seed_mesh"
 done
+# VTU: zlib-compressed (the default, above), raw, and the interfaces file
+"$BIN/i2m" "$W/m.nrrd" -o "$W/m_raw.vtu" --vtu-raw --quiet --threads 1 || exit 1
+seed "$W/m_raw.vtu" 0 "$W/seed_mesh"
+seed "$W/m.interfaces.vtu" 0 "$W/seed_mesh"
+# and as VTK's own writer writes it by default (appended base64), when python3 has vtk
+PY=${PYTHON:-/usr/bin/python3}
+if "$PY" -c 'import vtk' 2>/dev/null; then
+  "$PY" -c 'import sys, vtk
+r = vtk.vtkXMLUnstructuredGridReader(); r.SetFileName(sys.argv[1]); r.Update()
+w = vtk.vtkXMLUnstructuredGridWriter(); w.SetInputData(r.GetOutput()); w.SetFileName(sys.argv[2])
+sys.exit(w.Write() != 1)' "$W/m.vtu" "$W/m_vtk.vtu" && seed "$W/m_vtk.vtu" 0 "$W/seed_mesh"
+fi
 
 status=0
 for h in image mesh; do

@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""Splits a .vtu tetrahedral mesh written by i2m into pieces and a .pvtu naming them, as
-`mpirun i2m -o OUT.pvtu` writes them: every piece a VTK XML UnstructuredGrid with appended raw
-data (UInt64 headers), Points Float64, point data GlobalNodeId Int64 (here the vertex's index in
-the input + an offset), connectivity / offsets Int64, types UInt8, cell data "material" (the
-input's type).  Tets go to pieces by the rank of their centroid along the longest axis of the
-mesh's bounding box, so the pieces share the vertices on the seams between them.  Test fixture
-for i2m-check (tests/scripts/test_check_pvtu.sh); the standard library only.
+"""Splits a .vtu tetrahedral mesh written by i2m (raw or zlib-compressed) into pieces and a
+.pvtu naming them, as `mpirun i2m -o OUT.pvtu --vtu-raw` writes them: every piece a VTK XML
+UnstructuredGrid with appended raw data (UInt64 headers), Points Float64, point data
+GlobalNodeId Int64 (here the vertex's index in the input + an offset), connectivity / offsets
+Int64, types UInt8, cell data "material" (the input's type).  Tets go to pieces by the rank of
+their centroid along the longest axis of the mesh's bounding box, so the pieces share the
+vertices on the seams between them.  Test fixture for i2m-check (tests/scripts/test_check_pvtu.sh); the standard library only.
 
   pvtu_split.py IN.vtu OUT.pvtu [--pieces N] [--offset K] [--break KIND]
 
@@ -22,6 +22,7 @@ import os
 import re
 import struct
 import sys
+import zlib
 from array import array
 
 TYPES = {'Float64': 'd', 'Float32': 'f', 'Int64': 'q', 'UInt64': 'Q', 'Int32': 'i',
@@ -33,22 +34,40 @@ def attr(tag, name):
     return m.group(1) if m else None
 
 
+def inflate(data, start, hsize):
+    """A zlib-compressed appended array at start: header [blocks, block size, last partial
+    block size, compressed sizes], then the blocks."""
+    def num(k):
+        return int.from_bytes(data[start + k * hsize:start + (k + 1) * hsize], 'little')
+    nblocks, out, pos = num(0), b'', start + (3 + num(0)) * hsize
+    for b in range(nblocks):
+        size = num(3 + b)
+        out += zlib.decompress(data[pos:pos + size])
+        pos += size
+    return out
+
+
 def read_vtu(path):
-    """The arrays of an i2m .vtu (appended raw, little endian) by name."""
+    """The arrays of an i2m .vtu (appended raw or zlib-compressed, little endian) by name."""
     data = open(path, 'rb').read()
     head, sep, _ = data.partition(b'<AppendedData')
     if not sep or sys.byteorder != 'little':
-        sys.exit('%s: not an appended raw VTU (or a big-endian host)' % path)
+        sys.exit('%s: not an appended VTU (or a big-endian host)' % path)
     app = data.index(b'_', len(head)) + 1
     xml = head.decode()
-    hsize = 8 if attr(xml[:xml.index('>', xml.index('<VTKFile'))], 'header_type') == 'UInt64' else 4
+    vtkfile = xml[:xml.index('>', xml.index('<VTKFile'))]
+    hsize = 8 if attr(vtkfile, 'header_type') == 'UInt64' else 4
+    compressed = attr(vtkfile, 'compressor') == 'vtkZLibDataCompressor'
     arrays = {}
     for tag in re.findall(r'<DataArray[^>]*>', xml):
         ty, name, off = attr(tag, 'type'), attr(tag, 'Name'), int(attr(tag, 'offset'))
         start = app + off
-        nbytes = int.from_bytes(data[start:start + hsize], 'little')
         a = array(TYPES[ty])
-        a.frombytes(data[start + hsize:start + hsize + nbytes])
+        if compressed:
+            a.frombytes(inflate(data, start, hsize))
+        else:
+            nbytes = int.from_bytes(data[start:start + hsize], 'little')
+            a.frombytes(data[start + hsize:start + hsize + nbytes])
         arrays[name] = (ty, a)
     return arrays
 

@@ -1,7 +1,8 @@
 #!/bin/sh
 # Output files appear whole or not at all, and never replace what they must not:
-#  - -o, --report, --trace and the input may not name the same file (as files: a symbolic
-#    link or another spelling of the path counts), and the report's name ends in .json;
+#  - -o, its interfaces file (a .vtu's NAME.interfaces.vtu), --report, --trace and the input
+#    may not name the same file (as files: a symbolic link or another spelling of the path
+#    counts), and the report's name ends in .json;
 #  - a write that fails (a file-size limit) keeps the previous file of that name, byte for
 #    byte, exits 1 with one line, and leaves no temporary behind;
 #  - SIGTERM or SIGHUP in the middle of writing (the moment the temporary appears) or at a
@@ -52,6 +53,12 @@ expect_refused "trace = report" "same file" "$T/img.nrrd" -o "$T/out.vtu" --repo
 expect_refused "report not .json" ".json" "$T/img.nrrd" -o "$T/out.vtu" --report "$T/report.txt"
 expect_refused "--region with an infinite corner" "finite" "$T/img.nrrd" -o "$T/out.vtu" --region "0,0,0,inf,1,1:1"
 expect_refused "--threads above the limit" "threads" "$T/img.nrrd" -o "$T/out.vtu" --threads 2000
+# the interfaces file that comes with a .vtu (.pvtu) output: NAME.interfaces.vtu (.pvtu)
+cp "$T/img.nrrd" "$T/in.interfaces.vtu"
+mkdir -p "$T/dir.interfaces.pvtu"
+expect_refused "trace = the interfaces file of -o" "same file" "$T/img.nrrd" -o "$T/out.vtu" --trace "$T/out.interfaces.vtu"
+expect_refused "input = the interfaces file of -o" "same file" "$T/in.interfaces.vtu" -o "$T/in.vtu"
+expect_refused "the interfaces file of -o is a directory" "directory" "$T/img.nrrd" -o "$T/dir.pvtu"
 
 # no_temporary LABEL: nothing like out.vtu.tmp* left in $T
 no_temporary() {

@@ -423,6 +423,193 @@ static void test_vtu_variants(void)
   CU_ASSERT(strstr(i2m_error_message(), "connectivity") != NULL);
 }
 
+/* ------------------------------------------------------------------ compressed VTU */
+
+/* Labels 1..4 in slabs along x: a mesh whose connectivity (32 bytes a tet) fills more than one
+ * 1 MiB compression block, the last one partial. */
+static int64_t four_slabs(int64_t i, int64_t j, int64_t k)
+{
+  (void)j;
+  (void)k;
+  return 1 + i / 6;
+}
+
+static i2m_tetmesh_t *multi_block_mesh(void)
+{
+  static const int64_t n[3] = {24, 20, 16};
+  i2m_image_t *img = make_image(n, SP_SMALL, DIR_FLIP_Y, four_slabs);
+  i2m_tetmesh_t *m = voxel_mesh(img, 0, NULL);
+  i2m_image_destroy(&img);
+  return m;
+}
+
+static char *slurp(const char *path, size_t *len)
+{
+  char *buf = NULL;
+  CU_ASSERT_FATAL(read_file(path, &buf, len) == I2M_OK);
+  return buf;
+}
+
+static void spit(const char *path, const char *buf, size_t len)
+{
+  FILE *f = fopen(path, "wb");
+  CU_ASSERT_FATAL(f != NULL);
+  CU_ASSERT(fwrite(buf, 1, len, f) == len);
+  fclose(f);
+}
+
+/* Byte offset in the file of appended array `name` (its header). */
+static size_t appended_offset(const char *buf, const char *name)
+{
+  char key[96];
+  snprintf(key, sizeof key, "Name=\"%s\"", name);
+  const char *tag = strstr(buf, key), *off = tag ? strstr(tag, "offset=\"") : NULL;
+  const char *app = strstr(buf, "<AppendedData");
+  CU_ASSERT_FATAL(off && app && strchr(app, '_'));
+  return (size_t)(strchr(app, '_') + 1 - buf) + (size_t)strtoull(off + 8, NULL, 10);
+}
+
+static void put_le64(char *p, uint64_t v)
+{
+  for (int b = 0; b < 8; b++) p[b] = (char)(unsigned char)(v >> (8 * b));
+}
+
+static uint64_t le64_at(const char *p)
+{
+  uint64_t v = 0;
+  for (int b = 0; b < 8; b++) v |= (uint64_t)(unsigned char)p[b] << (8 * b);
+  return v;
+}
+
+/* The interfaces file of m, read with the checker's VTU functions: its points are the
+ * vertices the triangles use (in m's order), its triangles m's, renumbered, with their two
+ * labels. */
+static void check_interfaces_file(const i2m_tetmesh_t *m, const char *path)
+{
+  size_t len;
+  char *buf = slurp(path, &len);
+  vtu_t x = {buf, buf + len, path, NULL, NULL, 4, 0, 0, 0, 0};
+  vtu_da_t das[16];
+  int nda = 0;
+  const char *xml_end;
+  int64_t np, nc;
+  CU_ASSERT_FATAL(vtu_header(&x, &xml_end, &np, &nc) == I2M_OK && vtu_scan(&x, xml_end, das, &nda, 16) == I2M_OK);
+  CU_ASSERT(x.zlib);
+  int32_t *used = malloc((size_t)m->nv * sizeof *used);
+  int64_t nused = 0;
+  for (int64_t v = 0; v < m->nv; v++) used[v] = -1;
+  for (int64_t i = 0; i < 3 * m->ntri; i++) used[m->tri[i]] = 0;
+  for (int64_t v = 0; v < m->nv; v++)
+    if (used[v] == 0) used[nused++] = (int32_t)v; /* (nused <= v: rewrites entries already read) */
+  CU_ASSERT_FATAL(np == nused && nc == m->ntri);
+  double *xyz = malloc((size_t)(3 * np + 1) * sizeof *xyz);
+  int64_t *conn = malloc((size_t)(3 * nc + 1) * sizeof *conn), *lab[2], *types = malloc((size_t)(nc + 1) * sizeof *types);
+  lab[0] = malloc((size_t)(nc + 1) * sizeof **lab);
+  lab[1] = malloc((size_t)(nc + 1) * sizeof **lab);
+  CU_ASSERT_FATAL(vtu_array(&x, vtu_find(das, nda, VTU_SEC_POINTS, NULL), 3 * np, xyz, NULL) == I2M_OK);
+  CU_ASSERT_FATAL(vtu_array(&x, vtu_find(das, nda, VTU_SEC_CELLS, "connectivity"), 3 * nc, NULL, conn) == I2M_OK);
+  CU_ASSERT_FATAL(vtu_array(&x, vtu_find(das, nda, VTU_SEC_CELLS, "types"), nc, NULL, types) == I2M_OK);
+  CU_ASSERT_FATAL(vtu_array(&x, vtu_find(das, nda, VTU_SEC_CELLDATA, "label_a"), nc, NULL, lab[0]) == I2M_OK);
+  CU_ASSERT_FATAL(vtu_array(&x, vtu_find(das, nda, VTU_SEC_CELLDATA, "label_b"), nc, NULL, lab[1]) == I2M_OK);
+  int64_t bad = 0;
+  for (int64_t k = 0; k < np; k++) bad += memcmp(xyz + 3 * k, m->xyz + 3 * used[k], 3 * sizeof *xyz) != 0;
+  for (int64_t i = 0; i < nc; i++) {
+    bad += types[i] != 5 || lab[0][i] != m->tri_label[2 * i] || lab[1][i] != m->tri_label[2 * i + 1];
+    for (int j = 0; j < 3; j++) bad += conn[3 * i + j] < 0 || conn[3 * i + j] >= np || used[conn[3 * i + j]] != m->tri[3 * i + j];
+  }
+  CU_ASSERT_EQUAL(bad, 0);
+  free(used);
+  free(xyz);
+  free(conn);
+  free(types);
+  free(lab[0]);
+  free(lab[1]);
+  free(buf);
+}
+
+/* Compressed by default (several blocks, the last partial), raw on request: both read back
+ * the same mesh, the compressed file is smaller, and the interfaces file holds the triangles. */
+static void test_vtu_compressed(void)
+{
+  i2m_tetmesh_t *m = multi_block_mesh();
+  CU_ASSERT_FATAL(32 * m->nt > (1 << 20) && (32 * m->nt) % (1 << 20) != 0);
+  roundtrip(m, "z.vtu", 0);
+  i2m_write_opts_t raw = i2m_write_opts_default();
+  raw.compress = false;
+  CU_ASSERT_FATAL(i2m_mesh_write(m, tmp_path("r.vtu"), &raw) == I2M_OK);
+  size_t zlen, rlen;
+  char *z = slurp(tmp_path("z.vtu"), &zlen), *r = slurp(tmp_path("r.vtu"), &rlen);
+  CU_ASSERT(strstr(z, "compressor=\"vtkZLibDataCompressor\"") != NULL);
+  CU_ASSERT(strstr(r, "compressor=") == NULL);
+  CU_ASSERT(zlen < rlen / 2);
+  /* the connectivity's header: 2 blocks of 1 MiB, the last one partial */
+  const char *h = z + appended_offset(z, "connectivity");
+  CU_ASSERT(le64_at(h) == 2 && le64_at(h + 8) == (1 << 20) && le64_at(h + 16) == (uint64_t)(32 * m->nt) % (1 << 20));
+  ck_mesh_t a, b;
+  CU_ASSERT_FATAL(ck_mesh_read(tmp_path("r.vtu"), &a) == I2M_OK && ck_mesh_read(tmp_path("z.vtu"), &b) == I2M_OK);
+  CU_ASSERT(a.nv == b.nv && a.nt == b.nt && memcmp(a.xyz, b.xyz, (size_t)a.nv * 3 * sizeof(double)) == 0);
+  CU_ASSERT(memcmp(a.tet, b.tet, (size_t)a.nt * 4 * sizeof(int64_t)) == 0);
+  CU_ASSERT(memcmp(a.tet_label, b.tet_label, (size_t)a.nt * sizeof(int64_t)) == 0);
+  ck_mesh_free(&a);
+  ck_mesh_free(&b);
+  check_interfaces_file(m, tmp_path("z.interfaces.vtu"));
+  /* the interfaces file as the checker reads a mesh: no tets, its triangles skipped */
+  CU_ASSERT_FATAL(ck_mesh_read(tmp_path("r.interfaces.vtu"), &a) == I2M_OK);
+  CU_ASSERT(a.nt == 0 && a.ignored_cells == m->ntri);
+  ck_mesh_free(&a);
+  free(z);
+  free(r);
+  i2m_tetmesh_destroy(&m);
+}
+
+/* Expects the checker to refuse path with I2M_ERR_INPUT and a message holding `what`. */
+static void expect_refused(const char *path, const char *what)
+{
+  ck_mesh_t c;
+  const i2m_err_t err = ck_mesh_read(path, &c);
+  CU_ASSERT_EQUAL(err, I2M_ERR_INPUT);
+  if (err == I2M_OK) ck_mesh_free(&c);
+  else if (!strstr(i2m_error_message(), what)) fprintf(stderr, "expected '%s' in: %s\n", what, i2m_error_message());
+  CU_ASSERT(err != I2M_OK && strstr(i2m_error_message(), what) != NULL);
+}
+
+/* Corrupt compressed files: a clear error each, never a crash. */
+static void test_vtu_compressed_corrupt(void)
+{
+  i2m_tetmesh_t *m = multi_block_mesh();
+  CU_ASSERT_FATAL(i2m_mesh_write(m, tmp_path("z.vtu"), NULL) == I2M_OK);
+  size_t len;
+  char *good = slurp(tmp_path("z.vtu"), &len), *bad = malloc(len);
+  const char *path = tmp_path("bad.vtu");
+  const size_t conn = appended_offset(good, "connectivity"), pts = appended_offset(good, "Points");
+  /* a byte of the first connectivity block flipped */
+  memcpy(bad, good, len);
+  bad[conn + 8 * 5 + 100] ^= 0x55;
+  spit(path, bad, len);
+  expect_refused(path, "does not inflate");
+  /* more blocks announced than the file can hold sizes for */
+  memcpy(bad, good, len);
+  put_le64(bad + pts, (uint64_t)1 << 40);
+  spit(path, bad, len);
+  expect_refused(path, "too short");
+  /* a block size that does not add up to the array's size */
+  memcpy(bad, good, len);
+  put_le64(bad + conn + 8, (uint64_t)1 << 19);
+  spit(path, bad, len);
+  expect_refused(path, "compression header");
+  /* a compressed size beyond the end of the data */
+  memcpy(bad, good, len);
+  put_le64(bad + conn + 8 * 4, (uint64_t)len);
+  spit(path, bad, len);
+  expect_refused(path, "truncated");
+  /* the file cut in the middle of the data */
+  spit(path, good, conn + 1000);
+  expect_refused(path, "truncated");
+  free(good);
+  free(bad);
+  i2m_tetmesh_destroy(&m);
+}
+
 /* ------------------------------------------------------------------ pieces (.pvtu) */
 
 /* Tets t0 .. t1-1 of m as a piece: the vertices they use, renumbered, with global ids
@@ -908,6 +1095,8 @@ static const test_case_t cases[] = {
     {"roundtrip_gmsh", test_roundtrip_gmsh},
     {"vtu_wide_labels", test_vtu_wide_labels},
     {"vtu_variants", test_vtu_variants},
+    {"vtu_compressed", test_vtu_compressed},
+    {"vtu_compressed_corrupt", test_vtu_compressed_corrupt},
     {"pvtu_pieces", test_pvtu_pieces},
     {"write_errors", test_write_errors},
     {"validity_defects", test_validity_defects},
@@ -925,7 +1114,9 @@ static void remove_tmpdir(void)
   if (!tmpdir[0]) return;
   const char *names[] = {"a.vtu", "a.mesh", "a.msh", "ascii.msh", "wide.vtu", "bad.vtu",
                          "zero.msh", "x.obj", "full.msh", "ascii.vtu", "u32.vtu",
-                         "pv_0.vtu", "pv_1.vtu", "pv.pvtu"};
+                         "pv_0.vtu", "pv_1.vtu", "pv.pvtu", "z.vtu", "r.vtu",
+                         "a.interfaces.vtu", "wide.interfaces.vtu", "pv_0.interfaces.vtu",
+                         "pv_1.interfaces.vtu", "z.interfaces.vtu", "r.interfaces.vtu"};
   for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) unlink(tmp_path(names[i]));
   rmdir(tmpdir);
 }

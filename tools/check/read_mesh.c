@@ -1,6 +1,9 @@
 /* i2m-check: readers for the mesh files i2m writes (and simple variants of them).
- *   .vtu   VTK XML UnstructuredGrid: appended raw data with UInt32 or UInt64 headers,
- *          inline ascii or base64 DataArrays; no compression.  Tetrahedra (type 10) and
+ *   .vtu   VTK XML UnstructuredGrid: appended data (raw or base64, VTK's default) with
+ *          UInt32 or UInt64 headers, inline ascii or base64 DataArrays (the base64 header
+ *          encoded apart from the data or with it), each raw or zlib-compressed (compressor="vtkZLibDataCompressor":
+ *          a header [blocks, block size, last partial block size or 0, compressed size of
+ *          each block], then the blocks, each inflated on its own).  Tetrahedra (type 10) and
  *          cell data "material" (else the first cell array); other cells are skipped; the
  *          point data "GlobalNodeId" when present (the pieces of a distributed mesh).
  *   .pvtu  the list of pieces (<Piece Source=...>) of a PUnstructuredGrid; the pieces are
@@ -19,6 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <zlib.h>
 
 typedef struct {
   const char *p, *end; /* borrowed: cursor and end of the file buffer (NUL after end) */
@@ -357,7 +361,14 @@ typedef struct {
   const char *app_end; /* the closing </AppendedData> tag: the appended arrays end before it */
   int hsize;        /* 4 or 8 */
   int swap;
+  int zlib;         /* compressor="vtkZLibDataCompressor" */
+  int app_base64;   /* <AppendedData encoding="base64">: offsets count base64 characters */
+  int64_t max_values; /* no array of this file can hold more values (from the file's size) */
 } vtu_t;
+
+/* deflate expands at most 1032 times: a compressed file holds at most that many bytes for
+ * each of its own */
+#define ZLIB_MAX_RATIO 1032
 
 static int get_attr(const char *tag, const char *tag_end, const char *name, char *out, size_t size)
 {
@@ -425,7 +436,8 @@ static int b64(int c)
   return -1;
 }
 
-/* Decodes base64 text [p, end) into *out (owned); *n bytes. */
+/* Decodes base64 text [p, end) into *out (owned); *n bytes.  '=' padding ends a chunk (VTK
+ * encodes an array's header apart from its data): the bits left over are dropped. */
 static i2m_err_t b64_decode(const char *p, const char *end, unsigned char **out, size_t *n)
 {
   I2M_CALL(i2m_malloc((size_t)(end - p) / 4 * 3 + 4, 1, out));
@@ -433,8 +445,13 @@ static i2m_err_t b64_decode(const char *p, const char *end, unsigned char **out,
   int bits = 0;
   *n = 0;
   for (; p < end; p++) {
+    if (*p == '=') {
+      acc = 0;
+      bits = 0;
+      continue;
+    }
     int c = b64((unsigned char)*p);
-    if (c < 0) continue; /* whitespace, '=' padding */
+    if (c < 0) continue; /* whitespace */
     acc = (acc << 6) | (uint32_t)c;
     bits += 6;
     if (bits >= 8) {
@@ -445,78 +462,191 @@ static i2m_err_t b64_decode(const char *p, const char *end, unsigned char **out,
   return I2M_OK;
 }
 
-/* Reads count values of array da into d (doubles) or v (int64), whichever is not NULL. */
-static i2m_err_t vtu_array(const vtu_t *x, const vtu_da_t *da, int64_t count, double *d, int64_t *v)
+/* An unsigned header value (UInt32 or UInt64, the file's byte order) at p. */
+static uint64_t vtu_header_value(const vtu_t *x, const unsigned char *p)
 {
-  int ts = vtu_type_size(da->type);
-  unsigned char *tmp = NULL;
-  const unsigned char *data = NULL;
-  i2m_err_t err = I2M_OK;
-  I2M_CHECK(ts > 0, I2M_ERR_INPUT, "%s: DataArray %s has unknown type '%s'", x->path, da->name,
-            da->type);
-  if (strcmp(da->format, "ascii") == 0) {
-    rd_t r = {da->tag_end + 1, x->end, x->path, 0};
-    const char *stop = find_str(r.p, x->end, "</DataArray>");
-    if (stop) r.end = stop;
-    for (int64_t i = 0; i < count; i++) {
-      double dd = 0;
-      int64_t vv = 0;
-      int ok = da->type[0] == 'F' ? rd_f64(&r, &dd) : rd_i64(&r, &vv);
-      I2M_CHECK(ok, I2M_ERR_INPUT, "%s: DataArray %s: %lld values expected, fewer found",
-                x->path, da->name, (long long)count);
-      if (da->type[0] == 'F')
-        vv = dd > -9.0e18 && dd < 9.0e18 ? (int64_t)dd : INT64_MIN;
-      else
-        dd = (double)vv;
-      if (d) d[i] = dd;
-      if (v) v[i] = vv;
-    }
-    return I2M_OK;
+  uint64_t v = 0;
+  for (int i = 0; i < x->hsize; i++) v |= (uint64_t)p[x->swap ? x->hsize - 1 - i : i] << (8 * i);
+  return v;
+}
+
+/* Checks a raw array's header (its byte count) at data (avail bytes): want bytes follow. */
+static i2m_err_t vtu_raw_payload(const vtu_t *x, const vtu_da_t *da, const unsigned char *data, size_t avail,
+                                 uint64_t want, const unsigned char **payload)
+{
+  I2M_CHECK(avail >= (size_t)x->hsize, I2M_ERR_INPUT, "%s: DataArray %s: truncated", x->path, da->name);
+  const uint64_t nbytes = vtu_header_value(x, data);
+  I2M_CHECK(nbytes == want, I2M_ERR_INPUT, "%s: DataArray %s: %llu bytes where %llu are needed (%s)", x->path,
+            da->name, (unsigned long long)nbytes, (unsigned long long)want, da->type);
+  I2M_CHECK(avail - (size_t)x->hsize >= nbytes, I2M_ERR_INPUT,
+            "%s: DataArray %s: truncated (%llu bytes announced, only %zu there)", x->path, da->name,
+            (unsigned long long)nbytes, avail - (size_t)x->hsize);
+  *payload = data + x->hsize;
+  return I2M_OK;
+}
+
+/* Checks a compressed array's header [blocks, block size, last partial block size or 0,
+ * compressed sizes] at data (avail bytes) against the want bytes it must inflate to. */
+static i2m_err_t vtu_zlib_header(const vtu_t *x, const vtu_da_t *da, const unsigned char *data, size_t avail,
+                                 uint64_t want, uint64_t h[3])
+{
+  const size_t hs = (size_t)x->hsize;
+  I2M_CHECK(avail >= 3 * hs, I2M_ERR_INPUT, "%s: DataArray %s: truncated compression header", x->path, da->name);
+  for (int i = 0; i < 3; i++) h[i] = vtu_header_value(x, data + i * hs);
+  I2M_CHECK(h[0] <= (avail - 3 * hs) / hs, I2M_ERR_INPUT,
+            "%s: DataArray %s: %llu compressed blocks announced, the file is too short for their sizes", x->path,
+            da->name, (unsigned long long)h[0]);
+  const uint64_t last = h[2] ? h[2] : h[1]; /* (0: the last block is whole) */
+  const int fits = h[0] == 0 ? want == 0
+                             : h[1] > 0 && h[2] <= h[1] && h[1] <= ((uLong)-1) && h[0] - 1 <= want / h[1] &&
+                                   (h[0] - 1) * h[1] + last == want;
+  I2M_CHECK(fits, I2M_ERR_INPUT,
+            "%s: DataArray %s: compression header of %llu blocks of %llu bytes (last %llu) where %llu bytes are "
+            "needed (%s)", x->path, da->name, (unsigned long long)h[0], (unsigned long long)h[1],
+            (unsigned long long)h[2], (unsigned long long)want, da->type);
+  return I2M_OK;
+}
+
+/* Inflates a compressed array at data (avail bytes) into *out (owned), want bytes. */
+static i2m_err_t vtu_inflate(const vtu_t *x, const vtu_da_t *da, const unsigned char *data, size_t avail,
+                             uint64_t want, unsigned char **out)
+{
+  uint64_t h[3];
+  I2M_CALL(vtu_zlib_header(x, da, data, avail, want, h));
+  const size_t hs = (size_t)x->hsize;
+  const unsigned char *sizes = data + 3 * hs, *blk = sizes + h[0] * hs;
+  size_t left = avail - (3 + h[0]) * hs;
+  I2M_CALL(i2m_malloc(want ? want : 1, 1, out));
+  for (uint64_t b = 0; b < h[0]; b++) {
+    const uint64_t c = vtu_header_value(x, sizes + b * hs), u = b + 1 < h[0] || !h[2] ? h[1] : h[2];
+    I2M_CHECK(c <= left, I2M_ERR_INPUT, "%s: DataArray %s: compressed block %llu of %llu is truncated", x->path,
+              da->name, (unsigned long long)b, (unsigned long long)h[0]);
+    uLongf got = (uLongf)u;
+    const int rc = uncompress(*out + b * h[1], &got, blk, (uLong)c);
+    I2M_CHECK(rc == Z_OK && got == u, I2M_ERR_INPUT,
+              "%s: DataArray %s: compressed block %llu of %llu does not inflate to %llu bytes (%s)", x->path,
+              da->name, (unsigned long long)b, (unsigned long long)h[0], (unsigned long long)u,
+              rc == Z_OK ? "short" : zError(rc));
+    blk += c;
+    left -= (size_t)c;
   }
-  uint64_t nbytes = 0;
-  size_t avail = 0;
+  return I2M_OK;
+}
+
+/* Decodes an appended base64 array (VTK's default encoding): from its offset, enough base64
+ * characters for hbytes of header then dbytes of data, whether the two were encoded apart
+ * (VTK) or together; the rest of the appended data at most.  *out (owned) replaces the last. */
+static i2m_err_t b64_appended(const vtu_t *x, const vtu_da_t *da, uint64_t hbytes, uint64_t dbytes,
+                              unsigned char **out, size_t *n)
+{
+  const char *p = x->app + da->offset;
+  const uint64_t left = (uint64_t)(x->app_end - p), hchars = (hbytes + 2) / 3 * 4;
+  const uint64_t chars = dbytes > left ? left : hchars + (dbytes + 2) / 3 * 4;
+  i2m_free(out);
+  return b64_decode(p, chars < left ? p + chars : x->app_end, out, n);
+}
+
+/* The header and data of an appended base64 array, decoded into *tmp: the header says how
+ * much data follows (a byte count, or the compressed block sizes). */
+static i2m_err_t vtu_appended_b64(const vtu_t *x, const vtu_da_t *da, unsigned char **tmp, size_t *avail)
+{
+  const uint64_t hs = (uint64_t)x->hsize;
+  uint64_t hbytes = x->zlib ? 3 * hs : hs, dbytes = 0;
+  I2M_CALL(b64_appended(x, da, hbytes, 0, tmp, avail));
+  I2M_CHECK(*avail >= hbytes, I2M_ERR_INPUT, "%s: DataArray %s: truncated", x->path, da->name);
+  if (x->zlib) {
+    const uint64_t nb = vtu_header_value(x, *tmp);
+    I2M_CHECK(nb <= (uint64_t)(x->app_end - x->app) / hs, I2M_ERR_INPUT,
+              "%s: DataArray %s: %llu compressed blocks announced, the file is too short for their sizes", x->path,
+              da->name, (unsigned long long)nb);
+    hbytes += nb * hs;
+    I2M_CALL(b64_appended(x, da, hbytes, 0, tmp, avail));
+    I2M_CHECK(*avail >= hbytes, I2M_ERR_INPUT, "%s: DataArray %s: truncated", x->path, da->name);
+    for (uint64_t b = 0; b < nb && dbytes <= (uint64_t)(x->app_end - x->app); b++)
+      dbytes += vtu_header_value(x, *tmp + (3 + b) * hs);
+  } else {
+    dbytes = vtu_header_value(x, *tmp);
+  }
+  return b64_appended(x, da, hbytes, dbytes, tmp, avail);
+}
+
+/* The bytes of a binary array (appended raw, or base64 decoded into *tmp). */
+static i2m_err_t vtu_binary_source(const vtu_t *x, const vtu_da_t *da, unsigned char **tmp,
+                                   const unsigned char **data, size_t *avail)
+{
   if (strcmp(da->format, "appended") == 0) {
     I2M_CHECK(x->app, I2M_ERR_INPUT, "%s: DataArray %s is appended but there is no AppendedData",
               x->path, da->name);
     I2M_CHECK(da->offset >= 0 && da->offset <= x->app_end - x->app, I2M_ERR_INPUT,
               "%s: DataArray %s: offset %lld beyond the end of the appended data", x->path,
               da->name, (long long)da->offset);
-    data = (const unsigned char *)x->app + da->offset;
-    avail = (size_t)((const unsigned char *)x->app_end - data);
-  } else if (strcmp(da->format, "binary") == 0) {
-    const char *stop = find_str(da->tag_end, x->end, "</DataArray>");
-    I2M_CHECK(stop, I2M_ERR_INPUT, "%s: DataArray %s is not closed", x->path, da->name);
-    size_t n;
-    I2M_CALL(b64_decode(da->tag_end + 1, stop, &tmp, &n));
-    data = tmp;
-    avail = n;
-  } else {
-    return I2M_ERROR(I2M_ERR_UNSUPPORTED, "%s: DataArray %s: format '%s' not supported", x->path,
-                     da->name, da->format);
+    if (x->app_base64) {
+      I2M_CALL(vtu_appended_b64(x, da, tmp, avail));
+      *data = *tmp;
+      return I2M_OK;
+    }
+    *data = (const unsigned char *)x->app + da->offset;
+    *avail = (size_t)((const unsigned char *)x->app_end - *data);
+    return I2M_OK;
   }
-  I2M_CHECK_GOTO(avail >= (size_t)x->hsize, err, out, I2M_ERR_INPUT,
-                 "%s: DataArray %s: truncated", x->path, da->name);
-  double hd;
-  int64_t hv;
-  vtu_value(x->hsize == 8 ? "UInt64" : "UInt32", data, x->swap, &hd, &hv);
-  nbytes = (uint64_t)hv;
-  I2M_CHECK_GOTO(nbytes == (uint64_t)count * (uint64_t)ts, err, out, I2M_ERR_INPUT,
-                 "%s: DataArray %s: %llu bytes where %lld values of %s need %llu", x->path,
-                 da->name, (unsigned long long)nbytes, (long long)count, da->type,
-                 (unsigned long long)count * (unsigned long long)ts);
-  I2M_CHECK_GOTO(avail - (size_t)x->hsize >= nbytes, err, out, I2M_ERR_INPUT,
-                 "%s: DataArray %s: truncated (%llu bytes announced, only %zu there)",
-                 x->path, da->name, (unsigned long long)nbytes, avail - (size_t)x->hsize);
-  data += x->hsize;
+  I2M_CHECK(strcmp(da->format, "binary") == 0, I2M_ERR_UNSUPPORTED,
+            "%s: DataArray %s: format '%s' not supported", x->path, da->name, da->format);
+  const char *stop = find_str(da->tag_end, x->end, "</DataArray>");
+  I2M_CHECK(stop, I2M_ERR_INPUT, "%s: DataArray %s is not closed", x->path, da->name);
+  I2M_CALL(b64_decode(da->tag_end + 1, stop, tmp, avail));
+  *data = *tmp;
+  return I2M_OK;
+}
+
+/* Reads count values of inline ascii array da into d (doubles) or v (int64). */
+static i2m_err_t vtu_ascii_array(const vtu_t *x, const vtu_da_t *da, int64_t count, double *d, int64_t *v)
+{
+  rd_t r = {da->tag_end + 1, x->end, x->path, 0};
+  const char *stop = find_str(r.p, x->end, "</DataArray>");
+  if (stop) r.end = stop;
   for (int64_t i = 0; i < count; i++) {
-    double dd;
-    int64_t vv;
-    vtu_value(da->type, data + i * ts, x->swap, &dd, &vv);
+    double dd = 0;
+    int64_t vv = 0;
+    int ok = da->type[0] == 'F' ? rd_f64(&r, &dd) : rd_i64(&r, &vv);
+    I2M_CHECK(ok, I2M_ERR_INPUT, "%s: DataArray %s: %lld values expected, fewer found",
+              x->path, da->name, (long long)count);
+    if (da->type[0] == 'F')
+      vv = dd > -9.0e18 && dd < 9.0e18 ? (int64_t)dd : INT64_MIN;
+    else
+      dd = (double)vv;
     if (d) d[i] = dd;
     if (v) v[i] = vv;
   }
-out:
+  return I2M_OK;
+}
+
+/* Reads count values of array da into d (doubles) or v (int64), whichever is not NULL. */
+static i2m_err_t vtu_array(const vtu_t *x, const vtu_da_t *da, int64_t count, double *d, int64_t *v)
+{
+  const int ts = vtu_type_size(da->type);
+  I2M_CHECK(ts > 0, I2M_ERR_INPUT, "%s: DataArray %s has unknown type '%s'", x->path, da->name,
+            da->type);
+  if (strcmp(da->format, "ascii") == 0) return vtu_ascii_array(x, da, count, d, v);
+  unsigned char *tmp = NULL, *inflated = NULL;
+  const unsigned char *data = NULL, *payload = NULL;
+  size_t avail = 0;
+  const uint64_t want = (uint64_t)count * (uint64_t)ts;
+  i2m_err_t err = vtu_binary_source(x, da, &tmp, &data, &avail);
+  if (err == I2M_OK && x->zlib) {
+    err = vtu_inflate(x, da, data, avail, want, &inflated);
+    payload = inflated;
+  } else if (err == I2M_OK) {
+    err = vtu_raw_payload(x, da, data, avail, want, &payload);
+  }
+  for (int64_t i = 0; err == I2M_OK && i < count; i++) {
+    double dd;
+    int64_t vv;
+    vtu_value(da->type, payload + i * ts, x->swap, &dd, &vv);
+    if (d) d[i] = dd;
+    if (v) v[i] = vv;
+  }
   i2m_free(&tmp);
+  i2m_free(&inflated);
   return err;
 }
 
@@ -575,8 +705,11 @@ static i2m_err_t vtu_header(vtu_t *x, const char **xml_end, int64_t *np, int64_t
   I2M_CHECK(fe, I2M_ERR_INPUT, "%s: truncated VTKFile tag", x->path);
   I2M_CHECK(get_attr(f, fe, "type", buf, sizeof buf) && strcmp(buf, "UnstructuredGrid") == 0,
             I2M_ERR_UNSUPPORTED, "%s: VTK file type is not UnstructuredGrid", x->path);
-  I2M_CHECK(!get_attr(f, fe, "compressor", buf, sizeof buf), I2M_ERR_UNSUPPORTED,
-            "%s: compressed VTU (%s) is not supported", x->path, buf);
+  if (get_attr(f, fe, "compressor", buf, sizeof buf) && buf[0]) {
+    I2M_CHECK(strcmp(buf, "vtkZLibDataCompressor") == 0, I2M_ERR_UNSUPPORTED,
+              "%s: compressor %s is not supported (vtkZLibDataCompressor only)", x->path, buf);
+    x->zlib = 1;
+  }
   x->swap = get_attr(f, fe, "byte_order", buf, sizeof buf) && strcmp(buf, "BigEndian") == 0;
   x->hsize = get_attr(f, fe, "header_type", buf, sizeof buf) && strcmp(buf, "UInt64") == 0 ? 8 : 4;
   const char *ad = find_str(fe, x->end, "<AppendedData");
@@ -584,9 +717,11 @@ static i2m_err_t vtu_header(vtu_t *x, const char **xml_end, int64_t *np, int64_t
   if (ad) {
     const char *ae = memchr(ad, '>', (size_t)(x->end - ad));
     I2M_CHECK(ae, I2M_ERR_INPUT, "%s: truncated AppendedData tag", x->path);
-    if (get_attr(ad, ae, "encoding", buf, sizeof buf))
-      I2M_CHECK(strcmp(buf, "raw") == 0, I2M_ERR_UNSUPPORTED,
-                "%s: AppendedData encoding '%s' not supported (raw only)", x->path, buf);
+    if (get_attr(ad, ae, "encoding", buf, sizeof buf)) {
+      I2M_CHECK(strcmp(buf, "raw") == 0 || strcmp(buf, "base64") == 0, I2M_ERR_UNSUPPORTED,
+                "%s: AppendedData encoding '%s' not supported (raw or base64)", x->path, buf);
+      x->app_base64 = strcmp(buf, "base64") == 0;
+    }
     const char *u = memchr(ae, '_', (size_t)(x->end - ae));
     I2M_CHECK(u, I2M_ERR_INPUT, "%s: AppendedData without '_'", x->path);
     x->app = u + 1;
@@ -609,10 +744,11 @@ static i2m_err_t vtu_header(vtu_t *x, const char **xml_end, int64_t *np, int64_t
   I2M_CHECK(get_attr(pc, pe, "NumberOfCells", buf, sizeof buf), I2M_ERR_INPUT,
             "%s: Piece without NumberOfCells", x->path);
   *nc = strtoll(buf, NULL, 10);
-  int64_t lim = (int64_t)(x->end - x->buf);
-  I2M_CHECK(*np >= 0 && *nc >= 0 && *np <= lim && *nc <= lim, I2M_ERR_INPUT,
-            "%s: NumberOfPoints %lld / NumberOfCells %lld do not fit a %lld-byte file", x->path,
-            (long long)*np, (long long)*nc, (long long)lim);
+  const int64_t lim = (int64_t)(x->end - x->buf);
+  x->max_values = x->zlib ? lim * ZLIB_MAX_RATIO : lim;
+  I2M_CHECK(*np >= 0 && *nc >= 0 && *np <= x->max_values && *nc <= x->max_values, I2M_ERR_INPUT,
+            "%s: NumberOfPoints %lld / NumberOfCells %lld do not fit a %lld-byte%s file", x->path,
+            (long long)*np, (long long)*nc, (long long)lim, x->zlib ? " compressed" : "");
   return I2M_OK;
 }
 
@@ -633,7 +769,7 @@ static i2m_err_t vtu_global_ids(const vtu_t *x, const vtu_da_t *das, int nda, in
 
 static i2m_err_t read_vtu(const char *buf, size_t len, const char *path, ck_mesh_t *m)
 {
-  vtu_t x = {buf, buf + len, path, NULL, NULL, 4, 0};
+  vtu_t x = {buf, buf + len, path, NULL, NULL, 4, 0, 0, 0, 0};
   vtu_da_t das[64];
   int nda = 0;
   const char *xml_end = NULL;
@@ -660,7 +796,7 @@ static i2m_err_t read_vtu(const char *buf, size_t len, const char *path, ck_mesh
   I2M_CALL_GOTO(err, out, vtu_array(&x, doff, nc, NULL, offs));
   I2M_CALL_GOTO(err, out, vtu_array(&x, dt, nc, NULL, types));
   int64_t nconn = nc ? offs[nc - 1] : 0;
-  I2M_CHECK_GOTO(nconn >= 0 && nconn <= (int64_t)len, err, out, I2M_ERR_INPUT,
+  I2M_CHECK_GOTO(nconn >= 0 && nconn <= x.max_values, err, out, I2M_ERR_INPUT,
                  "%s: bad last cell offset %lld", path, (long long)nconn);
   I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nconn, sizeof *conn, &conn));
   I2M_CALL_GOTO(err, out, vtu_array(&x, dc, nconn, NULL, conn));

@@ -322,11 +322,17 @@ i2m_err_t pieces_build(i2m_refine_t *r, pieces_t *P)
   i2m_err_t err = I2M_OK;
   I2M_CALL_GOTO(err, fail, i2m_malloc(n ? n : 1, sizeof *P->par, &P->par));
   I2M_CALL_GOTO(err, fail, i2m_malloc(n ? n : 1, sizeof *P->idx, &P->idx));
+  const double t0 = i2m_wtime();
   find_parts(dt, P->par);
+  const double t1 = i2m_wtime();
   I2M_CALL_GOTO(err, fail, list_parts(r, P));
+  const double t2 = i2m_wtime();
   I2M_CALL_GOTO(err, fail, describe_parts(r, P));
+  const double t3 = i2m_wtime();
   I2M_CALL_GOTO(err, fail, describe_areas(r, P));
   I2M_CALL_GOTO(err, fail, describe_faces(r, P));
+  i2m_debug("pieces: %zu parts of %u tet slots; find %.2f s, list %.2f s, describe %.2f s, areas and faces %.2f s", P->nparts, n,
+            t1 - t0, t2 - t1, t3 - t2, i2m_wtime() - t3);
   return I2M_OK;
 fail:
   pieces_free(P);

@@ -410,8 +410,10 @@ static i2m_err_t run_tiled(team_t *tm, i2m_threads_report_t *rep, bool keep)
 static i2m_err_t bridge_round(i2m_refine_t *r, bool *more)
 {
   int64_t splits, inserted;
+  const double t0 = i2m_wtime();
   I2M_CALL(i2m_refine_bridge_splits(r, I2M_WHOLE_MIN_VOXELS, &splits, &inserted));
-  if (splits) i2m_debug("component rule: %lld split components, %lld bridge vertices", (long long)splits, (long long)inserted);
+  i2m_debug("component rule: %lld split components, %lld bridge vertices, %.2f s", (long long)splits, (long long)inserted,
+            i2m_wtime() - t0);
   *more = inserted > 0;
   return I2M_OK;
 }

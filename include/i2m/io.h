@@ -6,6 +6,10 @@
  *          I2M_MSH_ASCII=1): one physical volume per label ("label_<v>", tag v > 0), one
  *          physical surface per interface pair ("interface_<a>_<b>", tags after the largest
  *          label).
+ * Interface triangles (Medit, Gmsh) follow i2m_tetmesh_t: the label pair (a, b) has the lower
+ * label first (the background 0, then tissues by value) and the normal (right-hand rule)
+ * points from b to a, from the higher label to the lower: out of the meshed domain on the
+ * outer boundary, as Medit, mmg and Gmsh expect of a boundary surface.
  * Output is buffered (large fwrite chunks) and every write is checked; a failed write
  * removes the partial file.  bin/i2m-check reads all three back (tools/check). */
 #ifndef I2M_IO_H

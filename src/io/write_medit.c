@@ -51,7 +51,8 @@ i2m_err_t io_write_medit(const i2m_tetmesh_t *m, const char *path, const i2m_wri
   for (int64_t t = 0; t < m->nt; t++) medit_element(&o, m->tet + 4 * t, 4, m->tet_label[t]);
   if (m->ntri > 0) {
     io_out_printf(&o, "\n# i2m interfaces: a triangle's ref numbers the label pair (a,b)\n"
-                      "# of the tissues on its two sides; its normal points from a to b.\n");
+                      "# of the tissues on its two sides (0: outside); its normal points from\n"
+                      "# b to a, from the higher label to the lower (out of the domain for 0).\n");
     for (int64_t p = 0; p < npairs; p++)
       io_out_printf(&o, "# i2m interface %lld = labels %lld %lld\n", (long long)(p + 1),
                     (long long)pairs[2 * p], (long long)pairs[2 * p + 1]);

@@ -1,7 +1,10 @@
 /* Refine layer: extraction of the labelled mesh (REFERENCE §1.8): the tets whose
- * circumcentre is inside, labelled there; the interface triangles between different labels
- * (normal from the smaller label value to the larger); compacted vertices.  The mesher works
- * in world coordinates, so the tets keep the exact positive orientation the kernel gave. */
+ * circumcentre is inside, labelled there; the interface triangles between different labels;
+ * compacted vertices.  The mesher works
+ * in world coordinates, so the tets keep the exact positive orientation the kernel gave.
+ * Triangle orientation (include/i2m/tetmesh.h): the normal points from the higher label to
+ * the lower one, the background ranking below every tissue: out of the meshed domain on the
+ * outer boundary, the Medit / mmg / Gmsh convention. */
 #include "refine_impl.h"
 
 #include <string.h>
@@ -20,14 +23,19 @@ static int64_t neighbour_label(const i2m_refine_t *r, uint32_t t, int i)
  * prefix sums, filled in parallel; the output does not depend on the number of threads. */
 #define EXTRACT_CHUNKS 256
 
-/* The interface faces of kept tet t to write (each once: from the side with the smaller label
- * value, or the only labelled side). */
+/* The interface faces of kept tet t to write (each once: from the side whose label ranks
+ * lower, or from the only labelled side). */
+static bool face_written_here(int64_t lt, int64_t lu)
+{
+  return lu != lt && (lu == 0 || i2m_label_ranks_below(lt, lu));
+}
+
 static int faces_to_write(const i2m_refine_t *r, uint32_t t, int64_t lt, int64_t lu[4])
 {
   int n = 0;
   for (int i = 0; i < 4; i++) {
     lu[i] = neighbour_label(r, t, i);
-    n += lu[i] != lt && (lu[i] == 0 || lt < lu[i]);
+    n += face_written_here(lt, lu[i]);
   }
   return n;
 }
@@ -74,16 +82,20 @@ static void extract_fill_chunk(const i2m_refine_t *r, const int32_t *vmap, i2m_t
     m->tet_label[kt++] = lt;
     faces_to_write(r, t, lt, lu);
     for (int i = 0; i < 4; i++) {
-      if (lu[i] == lt || !(lu[i] == 0 || lt < lu[i])) continue;
-      int32_t *f = m->tri + 3 * kf; /* outward normal goes from lt to lu: flip when lt is larger */
+      if (!face_written_here(lt, lu[i])) continue;
+      /* FACE_OUT points from lt to lu[i]; the normal must point from the higher label to the
+       * lower: kept when lu[i] is the background (out of the domain), flipped when lt ranks
+       * below the tissue lu[i] */
+      const bool flip = lu[i] != 0;
+      int32_t *f = m->tri + 3 * kf;
       for (int k = 0; k < 3; k++) f[k] = vmap[v[FACE_OUT[i][k]]];
-      if (!(lt < lu[i])) {
+      if (flip) {
         int32_t x = f[0];
         f[0] = f[1];
         f[1] = x;
       }
-      m->tri_label[2 * kf] = lt < lu[i] ? lt : lu[i];
-      m->tri_label[2 * kf + 1] = lt < lu[i] ? lu[i] : lt;
+      m->tri_label[2 * kf] = flip ? lt : lu[i]; /* (the lower first) */
+      m->tri_label[2 * kf + 1] = flip ? lu[i] : lt;
       kf++;
     }
   }

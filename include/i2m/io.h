@@ -1,7 +1,9 @@
 /* i2m io layer (layer 7): mesh writers.  The format follows the output file's extension:
  *   .vtu   VTK XML unstructured grid, binary appended data, cell data "material"
  *   .mesh  Medit ASCII: vertices, tetrahedra (ref = label value), interface triangles
- *          (ref = interface number; a comment block maps numbers to label pairs)
+ *          (ref = interface number; a comment block maps numbers to label pairs, and so does
+ *          the JSON side file NAME.mesh.json written with it, which survives tools such as
+ *          mmg that drop comments)
  *   .msh   Gmsh 4.1 (binary; ASCII with i2m_write_opts_t.ascii or the environment variable
  *          I2M_MSH_ASCII=1): one physical volume per label ("label_<v>", tag v > 0), one
  *          physical surface per interface pair ("interface_<a>_<b>", tags after the largest
@@ -40,9 +42,13 @@ i2m_write_opts_t i2m_write_opts_default(void);
 /** Format for a file name (by extension, case-insensitive); I2M_FORMAT_UNKNOWN if none. */
 i2m_format_t i2m_format_from_path(const char *path);
 
-/** Checks before any work that @p path can be written: a known extension, an existing
- *  writable directory, not a directory itself.  Writes nothing. */
+/** Checks before any work that @p path (and a Medit mesh's side file) can be written: a known
+ *  extension, an existing writable directory, not a directory itself.  Writes nothing. */
 i2m_err_t i2m_mesh_check_writable(const char *path);
+
+/** The JSON side file written with a Medit mesh: "<path>.json" into out[cap] when @p path
+ *  names a .mesh file (true); false for other formats or when it does not fit. */
+bool i2m_mesh_side_path(const char *path, char *out, size_t cap);
 
 /** Writes @p m to @p path in the format given by its extension.  Not collective.
  *  @p opts may be NULL (the defaults).  On error the message names the file and the

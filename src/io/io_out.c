@@ -180,10 +180,10 @@ static i2m_err_t check_mesh(const i2m_tetmesh_t *m, const char *path)
   return I2M_OK;
 }
 
-i2m_err_t i2m_mesh_check_writable(const char *path)
+/* An output file can be written: not a directory, writable, or a new name in a writable
+ * directory. */
+static i2m_err_t check_file_writable(const char *path)
 {
-  I2M_CHECK(i2m_format_from_path(path) != I2M_FORMAT_UNKNOWN, I2M_ERR_ARG,
-            "%s: unknown output format; use a .vtu, .pvtu, .mesh or .msh file name", path);
   struct stat st;
   if (stat(path, &st) == 0) {
     I2M_CHECK(!S_ISDIR(st.st_mode), I2M_ERR_IO, "%s: is a directory, not an output file", path);
@@ -195,6 +195,19 @@ i2m_err_t i2m_mesh_check_writable(const char *path)
   I2M_CHECK(stat(dir, &st) == 0 && S_ISDIR(st.st_mode), I2M_ERR_IO,
             "%s: cannot write: the directory %s does not exist", path, dir);
   I2M_CHECK(access(dir, W_OK) == 0, I2M_ERR_IO, "%s: cannot write into %s: %s", path, dir, strerror(errno));
+  return I2M_OK;
+}
+
+i2m_err_t i2m_mesh_check_writable(const char *path)
+{
+  I2M_CHECK(i2m_format_from_path(path) != I2M_FORMAT_UNKNOWN, I2M_ERR_ARG,
+            "%s: unknown output format; use a .vtu, .pvtu, .mesh or .msh file name", path);
+  I2M_CALL(check_file_writable(path));
+  char side[4096];
+  if (i2m_format_from_path(path) == I2M_FORMAT_MEDIT) {
+    I2M_CHECK(i2m_mesh_side_path(path, side, sizeof side), I2M_ERR_ARG, "%s: file name too long", path);
+    I2M_CALL(check_file_writable(side)); /* its JSON side file */
+  }
   return I2M_OK;
 }
 

@@ -922,7 +922,7 @@ static const test_case_t cases[] = {
 static void remove_tmpdir(void)
 {
   if (!tmpdir[0]) return;
-  const char *names[] = {"a.vtu", "a.mesh", "a.msh", "ascii.msh", "wide.vtu", "bad.vtu",
+  const char *names[] = {"a.vtu", "a.mesh", "a.mesh.json", "a.msh", "ascii.msh", "wide.vtu", "bad.vtu",
                          "zero.msh", "x.obj", "full.msh", "ascii.vtu", "u32.vtu",
                          "pv_0.vtu", "pv_1.vtu", "pv.pvtu"};
   for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) unlink(tmp_path(names[i]));

@@ -192,6 +192,10 @@ static i2m_err_t report(run_t *r)
     AGREE(r, I2M_OK);
   if (!whole) i2m_dist_reduce_quality(r->par, &r->quality);
   phase_end(r, I2M_PHASE_QUALITY);
+  if (r->par->rank == 0) { /* (on stderr even with --quiet, as warn_split_components) */
+    const i2m_write_opts_t wo = write_opts(r); /* (the tissue names the writers get) */
+    i2m_report_warn_labels(stderr, &r->quality, r->img, wo.names, I2M_VOLUME_WARN_FRACTION);
+  }
   rep->input = r->opt.input;
   rep->output = r->opt.output;
   rep->img = r->img;

@@ -1,8 +1,12 @@
 /* Base layer: verbosity-controlled logging and progress lines on stderr. */
 #include "i2m/base.h"
 
+#include <stdatomic.h>
 #include <stdio.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 static i2m_log_level_t log_level = I2M_LOG_INFO;
 static char log_prefix[64];
@@ -34,6 +38,7 @@ void i2m_progress_begin(i2m_progress_t *p, const char *phase, const char *unit)
   p->t_start = p->t_last = i2m_wtime();
   p->interval = 2.0;
   p->total = 0;
+  p->done = 0;
 }
 
 void i2m_progress_begin_total(i2m_progress_t *p, const char *phase, const char *unit, int64_t total)
@@ -67,4 +72,13 @@ void i2m_progress_end(i2m_progress_t *p, int64_t count)
 {
   double now = i2m_wtime();
   if (now - p->t_start >= p->interval) progress_print(p, count, now, " done");
+}
+
+void i2m_progress_add(i2m_progress_t *p, int64_t n)
+{
+  const int64_t done = atomic_fetch_add_explicit((_Atomic int64_t *)&p->done, n, memory_order_relaxed) + n;
+#ifdef _OPENMP
+  if (omp_get_thread_num() != 0) return; /* (one thread looks at the clock and prints) */
+#endif
+  i2m_progress_update(p, done);
 }

@@ -24,6 +24,7 @@ i2m_err_t io_out_open(io_out_t *o, const char *path)
     return err;
   }
   o->f = o->out.f;
+  i2m_progress_begin(&o->progress, "writing", "MB"); /* (the size is not known before) */
   return I2M_OK;
 }
 
@@ -35,6 +36,8 @@ void io_out_flush(io_out_t *o)
   }
   errno = 0;
   size_t w = fwrite(o->buf, 1, o->len, o->f);
+  o->written += (int64_t)w;
+  i2m_progress_update(&o->progress, o->written >> 20);
   if (w != o->len) {
     int e = errno;
     o->err = I2M_ERROR(I2M_ERR_IO, "%s: write failed after %zu of %zu bytes: %s", o->path, w,
@@ -83,6 +86,7 @@ i2m_err_t io_out_close(io_out_t *o)
 {
   if (!o->f) return o->err;
   io_out_flush(o);
+  i2m_progress_end(&o->progress, o->written >> 20);
   if (o->err == I2M_OK) o->err = i2m_outfile_commit(&o->out);
   else i2m_outfile_abandon(&o->out);
   o->f = NULL;

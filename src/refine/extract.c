@@ -23,6 +23,13 @@ static int64_t neighbour_label(const i2m_refine_t *r, uint32_t t, int i)
  * prefix sums, filled in parallel; the output does not depend on the number of threads. */
 #define EXTRACT_CHUNKS 256
 
+/* The number of tet slots in chunk c (for the progress line). */
+static int64_t chunk_slots(const i2m_dt_t *dt, int c)
+{
+  const uint64_t n = i2m_dt_ntets_slots(dt);
+  return (int64_t)(n * (uint64_t)(c + 1) / EXTRACT_CHUNKS - n * (uint64_t)c / EXTRACT_CHUNKS);
+}
+
 /* The interface faces of kept tet t to write (each once: from the side whose label ranks
  * lower, or from the only labelled side). */
 static bool face_written_here(int64_t lt, int64_t lu)
@@ -41,7 +48,7 @@ static int faces_to_write(const i2m_refine_t *r, uint32_t t, int64_t lt, int64_t
 }
 
 /* Pass 1: per chunk, the kept tets and interface triangles; marks the vertices used. */
-static void extract_count(const i2m_refine_t *r, uint8_t *used, int64_t *ntet, int64_t *ntri)
+static void extract_count(const i2m_refine_t *r, uint8_t *used, int64_t *ntet, int64_t *ntri, i2m_progress_t *pg)
 {
   const i2m_dt_t *dt = r->dt;
   uint32_t nslots = i2m_dt_ntets_slots(dt);
@@ -59,6 +66,7 @@ static void extract_count(const i2m_refine_t *r, uint8_t *used, int64_t *ntet, i
     }
     ntet[c + 1] = nt;
     ntri[c + 1] = nf;
+    i2m_progress_add(pg, chunk_slots(dt, c));
   }
   ntet[0] = ntri[0] = 0;
   for (int c = 0; c < EXTRACT_CHUNKS; c++) { /* offsets */
@@ -115,7 +123,9 @@ i2m_err_t i2m_refine_extract(const i2m_refine_t *r, i2m_tetmesh_t **out)
   I2M_CALL_GOTO(err, done, i2m_malloc(nvs, sizeof *vmap, &vmap));
   I2M_CALL_GOTO(err, done, i2m_malloc(EXTRACT_CHUNKS + 1, sizeof *ntet, &ntet));
   I2M_CALL_GOTO(err, done, i2m_malloc(EXTRACT_CHUNKS + 1, sizeof *ntri, &ntri));
-  extract_count(r, used, ntet, ntri);
+  i2m_progress_t pg; /* (two passes over the slots) */
+  i2m_progress_begin_total(&pg, "extraction", "tet slots", 2 * (int64_t)i2m_dt_ntets_slots(dt));
+  extract_count(r, used, ntet, ntri, &pg);
   int64_t nv = 0;
   for (uint32_t v = 0; v < nvs; v++) vmap[v] = used[v] ? (int32_t)nv++ : -1;
   I2M_CALL_GOTO(err, done, i2m_tetmesh_create(nv, ntet[EXTRACT_CHUNKS], ntri[EXTRACT_CHUNKS], &m));
@@ -127,7 +137,11 @@ i2m_err_t i2m_refine_extract(const i2m_refine_t *r, i2m_tetmesh_t **out)
     if (m->gid) m->gid[vmap[v]] = i2m_dt_gid(dt, (uint32_t)v);
   }
   I2M_OMP(omp parallel for schedule(dynamic, 4))
-  for (int c = 0; c < EXTRACT_CHUNKS; c++) extract_fill_chunk(r, vmap, m, c, ntet[c], ntri[c]);
+  for (int c = 0; c < EXTRACT_CHUNKS; c++) {
+    extract_fill_chunk(r, vmap, m, c, ntet[c], ntri[c]);
+    i2m_progress_add(&pg, chunk_slots(dt, c));
+  }
+  i2m_progress_end(&pg, 2 * (int64_t)i2m_dt_ntets_slots(dt));
   *out = m;
   m = NULL;
 done:

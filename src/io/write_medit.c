@@ -70,25 +70,36 @@ static void side_names(FILE *f, const int64_t *values, int64_t n, const i2m_labe
   fprintf(f, "]");
 }
 
-/* The distinct tet labels of m, sorted (owned by the caller). */
+/* The distinct tet labels of m, sorted (owned by the caller): a binary search per run of
+ * equal labels in a sorted array that grows (at most I2M_MAX_LABELS of them). */
 static i2m_err_t tet_labels(const i2m_tetmesh_t *m, int64_t **labels, int64_t *n)
 {
+  int64_t cap = 16, *l = NULL;
   *n = 0;
-  I2M_CALL(i2m_malloc((size_t)(m->nt ? m->nt : 1), sizeof **labels, labels));
-  int64_t *l = *labels;
-  for (int64_t t = 0; t < m->nt; t++) { /* few labels, long runs of one: a linear set */
-    if (*n && l[*n - 1] == m->tet_label[t]) continue;
-    int64_t k = 0;
-    while (k < *n && l[k] != m->tet_label[t]) k++;
-    if (k == *n) {
-      int64_t j = (*n)++;
-      while (j > 0 && l[j - 1] > m->tet_label[t]) { /* insertion keeps them sorted */
-        l[j] = l[j - 1];
-        j--;
-      }
-      l[j] = m->tet_label[t];
+  I2M_CALL(i2m_malloc((size_t)cap, sizeof *l, &l));
+  for (int64_t t = 0; t < m->nt; t++) {
+    const int64_t v = m->tet_label[t];
+    if (t > 0 && v == m->tet_label[t - 1]) continue;
+    int64_t lo = 0, hi = *n;
+    while (lo < hi) {
+      const int64_t mid = (lo + hi) / 2;
+      if (l[mid] < v) lo = mid + 1;
+      else hi = mid;
     }
+    if (lo < *n && l[lo] == v) continue;
+    if (*n == cap) {
+      cap *= 2;
+      i2m_err_t err = i2m_realloc((size_t)cap, sizeof *l, &l);
+      if (err != I2M_OK) {
+        i2m_free(&l);
+        return err;
+      }
+    }
+    memmove(l + lo + 1, l + lo, (size_t)(*n - lo) * sizeof *l);
+    l[lo] = v;
+    (*n)++;
   }
+  *labels = l;
   return I2M_OK;
 }
 

@@ -4,9 +4,6 @@
 #include <stdatomic.h>
 #include <stdio.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 static i2m_log_level_t log_level = I2M_LOG_INFO;
 static char log_prefix[64];
@@ -39,6 +36,7 @@ void i2m_progress_begin(i2m_progress_t *p, const char *phase, const char *unit)
   p->interval = 2.0;
   p->total = 0;
   p->done = 0;
+  p->busy = 0;
 }
 
 void i2m_progress_begin_total(i2m_progress_t *p, const char *phase, const char *unit, int64_t total)
@@ -77,8 +75,8 @@ void i2m_progress_end(i2m_progress_t *p, int64_t count)
 void i2m_progress_add(i2m_progress_t *p, int64_t n)
 {
   const int64_t done = atomic_fetch_add_explicit((_Atomic int64_t *)&p->done, n, memory_order_relaxed) + n;
-#ifdef _OPENMP
-  if (omp_get_thread_num() != 0) return; /* (one thread looks at the clock and prints) */
-#endif
+  /* one thread at a time looks at the clock and prints; the others go on (a try-lock) */
+  if (atomic_exchange_explicit((_Atomic int *)&p->busy, 1, memory_order_acquire)) return;
   i2m_progress_update(p, done);
+  atomic_store_explicit((_Atomic int *)&p->busy, 0, memory_order_release);
 }

@@ -49,7 +49,7 @@ static void uf_union(_Atomic uint32_t *par, uint32_t a, uint32_t b)
   }
 }
 
-/* Progress of the passes over the tet slots: a line every 2 s from thread 0, each thread
+/* Progress of the passes over the tet slots: a line every 2 s (i2m_progress_add), each thread
  * adding its share every PROGRESS_STEP slots (a power of two). */
 #define PROGRESS_STEP 65536
 static inline void slot_done(i2m_progress_t *pg, int64_t t)

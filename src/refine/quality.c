@@ -53,7 +53,7 @@ static i2m_err_t tet_figures(const i2m_tetmesh_t *m, i2m_quality_t *q)
     int64_t hist[180] = {0};
     I2M_OMP(omp for schedule(static))
     for (int64_t t = 0; t < m->nt; t++) {
-      if ((t & 65535) == 65535) i2m_progress_add(&pg, 65536); /* (a line every 2 s, thread 0) */
+      if ((t & 65535) == 65535) i2m_progress_add(&pg, 65536); /* (one thread prints, every 2 s) */
       const int32_t *v = m->tet + 4 * t;
       const double *a = m->xyz + 3 * (size_t)v[0], *b = m->xyz + 3 * (size_t)v[1];
       const double *c = m->xyz + 3 * (size_t)v[2], *d = m->xyz + 3 * (size_t)v[3];

@@ -183,6 +183,8 @@ typedef struct {
   const char *unit;  /* borrowed, e.g. "tets" */
   double t_start, t_last, interval;
   int64_t total;     /* the count at the end, or 0 when unknown */
+  int64_t done;      /* the count so far, for i2m_progress_add (atomic) */
+  int busy;          /* i2m_progress_add: a thread is printing (atomic) */
 } i2m_progress_t;
 void i2m_progress_begin(i2m_progress_t *p, const char *phase, const char *unit);
 /** The same for a phase whose final count is known (an estimate of the time left is shown). */
@@ -190,6 +192,10 @@ void i2m_progress_begin_total(i2m_progress_t *p, const char *phase, const char *
 /** Cheap to call often: looks at the clock and prints only when the interval has passed. */
 void i2m_progress_update(i2m_progress_t *p, int64_t count);
 void i2m_progress_end(i2m_progress_t *p, int64_t count);
+/** For loops run by several threads: adds @p n items to the count (an atomic add: call it
+ *  every few thousand items); the calling thread prints the line when the interval has passed
+ *  and no other thread is doing so (a try-lock: nobody waits).  Thread safe. */
+void i2m_progress_add(i2m_progress_t *p, int64_t n);
 
 /* ---- timers and memory ---- */
 

@@ -4,12 +4,18 @@
  *          NAME.interfaces.vtu: the interface triangles, cell data "label_a" < "label_b"
  *          (the labels on the two sides; normal from a to b)
  *   .mesh  Medit ASCII: vertices, tetrahedra (ref = label value), interface triangles
- *          (ref = interface number; a comment block maps numbers to label pairs)
+ *          (ref = interface number; a comment block maps numbers to label pairs, and so does
+ *          the JSON side file NAME.mesh.json written with it, which survives tools such as
+ *          mmg that drop comments)
  *   .msh   Gmsh 4.1 or 2.2 (i2m_write_opts_t.msh_version), binary, or ASCII with
  *          i2m_write_opts_t.ascii or the environment variable I2M_MSH_ASCII=1: one physical
  *          volume per label (tag v > 0, named by its tissue name from opts->names, else
  *          "label_<v>"), one physical surface per interface pair ("interface_<a>_<b>", tags
  *          after the largest label); in 4.1 each volume entity lists its bounding surfaces.
+ * Interface triangles (Medit, Gmsh, the VTU interfaces file) follow i2m_tetmesh_t: the label
+ * pair (a, b) has the lower label first (the background 0, then tissues by value) and the
+ * normal (right-hand rule) points from b to a, from the higher label to the lower: out of the
+ * meshed domain on the outer boundary, as Medit, mmg and Gmsh expect of a boundary surface.
  * Output is buffered (large fwrite chunks) and every write is checked; a failed write
  * removes the partial file.  bin/i2m-check reads all three back (tools/check). */
 #ifndef I2M_IO_H
@@ -41,8 +47,8 @@ i2m_write_opts_t i2m_write_opts_default(void);
 /** Format for a file name (by extension, case-insensitive); I2M_FORMAT_UNKNOWN if none. */
 i2m_format_t i2m_format_from_path(const char *path);
 
-/** Checks before any work that @p path can be written: a known extension, an existing
- *  writable directory, not a directory itself.  Writes nothing. */
+/** Checks before any work that @p path (and a Medit mesh's side file) can be written: a known
+ *  extension, an existing writable directory, not a directory itself.  Writes nothing. */
 i2m_err_t i2m_mesh_check_writable(const char *path);
 
 /** The companion file of interface triangles that a .vtu or .pvtu output comes with:
@@ -50,8 +56,12 @@ i2m_err_t i2m_mesh_check_writable(const char *path);
  *  small. */
 bool i2m_mesh_interfaces_path(const char *path, char *out, size_t cap);
 
+/** The JSON side file written with a Medit mesh: "<path>.json" into out[cap] when @p path
+ *  names a .mesh file (true); false for other formats or when it does not fit. */
+bool i2m_mesh_side_path(const char *path, char *out, size_t cap);
+
 /** Writes @p m to @p path in the format given by its extension (a .vtu: and its interfaces
- *  file, see i2m_mesh_interfaces_path).  Not collective.
+ *  file, see i2m_mesh_interfaces_path; a .mesh: and its side file).  Not collective.
  *  @p opts may be NULL (the defaults).  On error the message names the file and the
  *  problem (unknown extension, disk full). */
 i2m_err_t i2m_mesh_write(const i2m_tetmesh_t *m, const char *path, const i2m_write_opts_t *opts);

@@ -48,6 +48,18 @@ typedef struct {
   i2m_sliver_stats_t slivers;        /**< what it did */
 } i2m_report_t;
 
+/** The mesh volume of a label may differ from its voxel volume by this fraction before a
+ *  warning says so. */
+#define I2M_VOLUME_WARN_FRACTION 0.05
+
+/** One warning line on @p f for every label of the image that the mesh leaves out, or whose
+ *  mesh volume differs from its voxel volume by more than @p tolerance (a fraction, e.g.
+ *  I2M_VOLUME_WARN_FRACTION), naming the label's value, its tissue name when @p names (may be
+ *  NULL) has one, and its voxel count.  @p q: the whole mesh's figures.  Returns the number
+ *  of lines.  Not collective: call it on one rank. */
+int i2m_report_warn_labels(FILE *f, const i2m_quality_t *q, const i2m_image_t *img, const i2m_label_names_t *names,
+                           double tolerance);
+
 /** Name of a phase ("read", "distance_transform", ...). */
 const char *i2m_phase_name(int phase);
 /** A human-readable summary. */

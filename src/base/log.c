@@ -1,6 +1,7 @@
 /* Base layer: verbosity-controlled logging and progress lines on stderr. */
 #include "i2m/base.h"
 
+#include <stdatomic.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -34,6 +35,8 @@ void i2m_progress_begin(i2m_progress_t *p, const char *phase, const char *unit)
   p->t_start = p->t_last = i2m_wtime();
   p->interval = 2.0;
   p->total = 0;
+  p->done = 0;
+  p->busy = 0;
 }
 
 void i2m_progress_begin_total(i2m_progress_t *p, const char *phase, const char *unit, int64_t total)
@@ -67,4 +70,13 @@ void i2m_progress_end(i2m_progress_t *p, int64_t count)
 {
   double now = i2m_wtime();
   if (now - p->t_start >= p->interval) progress_print(p, count, now, " done");
+}
+
+void i2m_progress_add(i2m_progress_t *p, int64_t n)
+{
+  const int64_t done = atomic_fetch_add_explicit((_Atomic int64_t *)&p->done, n, memory_order_relaxed) + n;
+  /* one thread at a time looks at the clock and prints; the others go on (a try-lock) */
+  if (atomic_exchange_explicit((_Atomic int *)&p->busy, 1, memory_order_acquire)) return;
+  i2m_progress_update(p, done);
+  atomic_store_explicit((_Atomic int *)&p->busy, 0, memory_order_release);
 }

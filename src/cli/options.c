@@ -202,10 +202,16 @@ static i2m_err_t parse_valued(const char *opt, const char *val, cli_options_t *o
  * or a mesh.  interfaces: the companion file of a .vtu or .pvtu output, or NULL. */
 static i2m_err_t check_paths(const cli_options_t *o, const char *interfaces)
 {
+  char side[4096]; /* a Medit mesh's JSON side file */
+  const bool has_side = i2m_mesh_side_path(o->output, side, sizeof side);
   const struct {
     const char *opt, *path;
-  } f[] = {{"the input", o->input}, {"-o", o->output}, {"--report", o->report}, {"--trace", o->trace},
-           {"the interfaces file of -o", interfaces}};
+  } f[] = {{"the input", o->input},
+           {"-o", o->output},
+           {"--report", o->report},
+           {"--trace", o->trace},
+           {"the interfaces file of -o", interfaces},
+           {"the Medit side file", has_side ? side : NULL}};
   const size_t n = sizeof f / sizeof *f;
   for (size_t i = 0; i < n; i++)
     for (size_t j = i + 1; j < n; j++)

@@ -121,11 +121,12 @@ static inline void box_coords(const i2m_edt_t *e, uint32_t f, uint32_t c[3])
 
 /* First pass, along axis 0: each voxel's nearest boundary voxel on its own row, by a
  * forward and a backward sweep. */
-static void edt_pass_rows(i2m_edt_t *e)
+static void edt_pass_rows(i2m_edt_t *e, i2m_progress_t *pg)
 {
   const int64_t n = e->m[0], nrows = e->m[1] * e->m[2];
   I2M_OMP(omp parallel for schedule(static))
   for (int64_t row = 0; row < nrows; row++) {
+    if ((row & 255) == 255) i2m_progress_add(pg, 256 * n);
     int32_t *ft = e->ft + row * n;
     int64_t last = -1;
     for (int64_t i = 0; i < n; i++) {
@@ -147,7 +148,7 @@ static void edt_pass_rows(i2m_edt_t *e)
  * axes only, read off the index difference: along axis 1 the feature is on the voxel's own
  * row (the difference is the offset along axis 0); along axis 2 it is in the voxel's own
  * slice, whose in-slice index gives both offsets with one division. */
-static i2m_err_t edt_pass(i2m_edt_t *e, int ax)
+static i2m_err_t edt_pass(i2m_edt_t *e, int ax, i2m_progress_t *pg)
 {
   const int64_t *m = e->m;
   int64_t stride = ax == 1 ? m[0] : m[0] * m[1];
@@ -165,6 +166,7 @@ static i2m_err_t edt_pass(i2m_edt_t *e, int ax)
     if (!f || !z || !g || !v || !arg || !feat) failed = 1;
     I2M_OMP(omp for schedule(dynamic, 64))
     for (int64_t line = 0; line < nlines; line++) {
+      if ((line & 63) == 63) i2m_progress_add(pg, 64 * n);
       if (failed) continue;
       /* line start: axis 1 lines are indexed by (i, k), axis 2 lines by (i, j) */
       int64_t base = ax == 1 ? (line % m[0]) + (line / m[0]) * m[0] * m[1] : line;
@@ -282,9 +284,12 @@ i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
     return err;
   }
   int64_t nb = 0;
+  i2m_progress_t pg; /* (four passes over the voxels of the box) */
+  i2m_progress_begin_total(&pg, "distance transform", "voxels", 4 * nbox);
   I2M_OMP(omp parallel for reduction(+ : nb) schedule(static))
   for (int64_t k = 0; k < e->m[2]; k++)
     for (int64_t j = 0; j < e->m[1]; j++) {
+      if (((k * e->m[1] + j) & 255) == 255) i2m_progress_add(&pg, 256 * e->m[0]); /* (every 256 rows) */
       const int64_t gj = e->lo[1] + j, gk = e->lo[2] + k, s1 = img->n[0], s2 = img->n[0] * img->n[1];
       const bool inner_row = gj > 0 && gj < img->n[1] - 1 && gk > 0 && gk < img->n[2] - 1;
       for (int64_t i = 0; i < e->m[0]; i++) {
@@ -296,8 +301,9 @@ i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
       }
     }
   e->nboundary = nb;
-  edt_pass_rows(e);
-  for (int ax = 1; ax < 3 && err == I2M_OK; ax++) err = edt_pass(e, ax);
+  edt_pass_rows(e, &pg);
+  for (int ax = 1; ax < 3 && err == I2M_OK; ax++) err = edt_pass(e, ax, &pg);
+  i2m_progress_end(&pg, 4 * nbox);
   if (err == I2M_OK) pack_labels(e, nbox);
   if (err != I2M_OK) i2m_edt_destroy(&e);
   *out = e;

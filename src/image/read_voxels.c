@@ -311,6 +311,8 @@ i2m_err_t image_read_voxels(image_stream_t *s, const image_voxels_t *vf, i2m_ima
   i2m_err_t err = conv_init(&c, vf, s, img);
   size_t size = image_scalar_size(vf->type);
   int64_t total = img->n[0] * img->n[1] * img->n[2];
+  i2m_progress_t pg; /* (large compressed images: inflating takes seconds) */
+  i2m_progress_begin_total(&pg, "reading the image", "voxels", total);
   while (err == I2M_OK && c.next < total) {
     const unsigned char *p;
     size_t avail;
@@ -324,7 +326,9 @@ i2m_err_t image_read_voxels(image_stream_t *s, const image_voxels_t *vf, i2m_ima
     err = size == 1 ? conv_8(&c, p, k) : size == 2 ? conv_16(&c, p, k) : conv_wide(&c, p, k);
     image_stream_consume(s, k * size);
     c.next += (int64_t)k;
+    i2m_progress_update(&pg, c.next);
   }
+  i2m_progress_end(&pg, c.next);
   if (err == I2M_OK) err = finish_labels(&c);
   if (err == I2M_OK) img->file_type = vf->type;
 done:

@@ -17,6 +17,8 @@ typedef struct {
   char *buf;        /* owned: [cap] bytes */
   size_t len, cap;
   i2m_err_t err;
+  int64_t written;          /* bytes written so far */
+  i2m_progress_t progress;  /* a line every 2 s while a large file is written */
 } io_out_t;
 
 /** Opens @p path for binary writing. */

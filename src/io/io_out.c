@@ -24,6 +24,7 @@ i2m_err_t io_out_open(io_out_t *o, const char *path)
     return err;
   }
   o->f = o->out.f;
+  i2m_progress_begin(&o->progress, "writing", "MB"); /* (the size is not known before) */
   return I2M_OK;
 }
 
@@ -35,6 +36,8 @@ void io_out_flush(io_out_t *o)
   }
   errno = 0;
   size_t w = fwrite(o->buf, 1, o->len, o->f);
+  o->written += (int64_t)w;
+  i2m_progress_update(&o->progress, o->written >> 20);
   if (w != o->len) {
     int e = errno;
     o->err = I2M_ERROR(I2M_ERR_IO, "%s: write failed after %zu of %zu bytes: %s", o->path, w,
@@ -83,6 +86,7 @@ i2m_err_t io_out_close(io_out_t *o)
 {
   if (!o->f) return o->err;
   io_out_flush(o);
+  i2m_progress_end(&o->progress, o->written >> 20);
   if (o->err == I2M_OK) o->err = i2m_outfile_commit(&o->out);
   else i2m_outfile_abandon(&o->out);
   o->f = NULL;
@@ -180,10 +184,10 @@ static i2m_err_t check_mesh(const i2m_tetmesh_t *m, const char *path)
   return I2M_OK;
 }
 
-i2m_err_t i2m_mesh_check_writable(const char *path)
+/* An output file can be written: not a directory, writable, or a new name in a writable
+ * directory. */
+static i2m_err_t check_file_writable(const char *path)
 {
-  I2M_CHECK(i2m_format_from_path(path) != I2M_FORMAT_UNKNOWN, I2M_ERR_ARG,
-            "%s: unknown output format; use a .vtu, .pvtu, .mesh or .msh file name", path);
   struct stat st;
   if (stat(path, &st) == 0) {
     I2M_CHECK(!S_ISDIR(st.st_mode), I2M_ERR_IO, "%s: is a directory, not an output file", path);
@@ -195,6 +199,19 @@ i2m_err_t i2m_mesh_check_writable(const char *path)
   I2M_CHECK(stat(dir, &st) == 0 && S_ISDIR(st.st_mode), I2M_ERR_IO,
             "%s: cannot write: the directory %s does not exist", path, dir);
   I2M_CHECK(access(dir, W_OK) == 0, I2M_ERR_IO, "%s: cannot write into %s: %s", path, dir, strerror(errno));
+  return I2M_OK;
+}
+
+i2m_err_t i2m_mesh_check_writable(const char *path)
+{
+  I2M_CHECK(i2m_format_from_path(path) != I2M_FORMAT_UNKNOWN, I2M_ERR_ARG,
+            "%s: unknown output format; use a .vtu, .pvtu, .mesh or .msh file name", path);
+  I2M_CALL(check_file_writable(path));
+  char side[4096];
+  if (i2m_format_from_path(path) == I2M_FORMAT_MEDIT) {
+    I2M_CHECK(i2m_mesh_side_path(path, side, sizeof side), I2M_ERR_ARG, "%s: file name too long", path);
+    I2M_CALL(check_file_writable(side)); /* its JSON side file */
+  }
   return I2M_OK;
 }
 

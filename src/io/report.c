@@ -176,6 +176,52 @@ static void json_quality(FILE *f, const i2m_report_t *r)
   fprintf(f, "\n  ],\n");
 }
 
+/* The voxel count of a label value (0 when the image has none). */
+static int64_t voxels_of(const i2m_image_t *img, int64_t value)
+{
+  for (int l = 0; img && l < img->nlabels; l++)
+    if (img->label_value[l] == value) return img->label_count[l];
+  return 0;
+}
+
+/* " (name)" with control characters replaced, or "" without a name: one line whatever the
+ * colour table holds. */
+static void name_suffix(const i2m_label_names_t *names, int64_t value, char *out, size_t cap)
+{
+  const char *s = i2m_label_name(names, value);
+  out[0] = '\0';
+  if (!s || cap < 4) return;
+  size_t k = 0;
+  out[k++] = ' ';
+  out[k++] = '(';
+  for (; *s && k + 2 < cap; s++) out[k++] = (unsigned char)*s < 32 || *s == 127 ? '?' : *s;
+  out[k++] = ')';
+  out[k] = '\0';
+}
+
+int i2m_report_warn_labels(FILE *f, const i2m_quality_t *q, const i2m_image_t *img, const i2m_label_names_t *names,
+                           double tolerance)
+{
+  int lines = 0;
+  for (int l = 0; q && l < q->nlabels; l++) {
+    const i2m_label_figures_t *g = &q->labels[l];
+    if (!(g->voxel_volume > 0)) continue;
+    const double rel = (g->volume - g->voxel_volume) / g->voxel_volume;
+    if (g->ntets > 0 && fabs(rel) <= tolerance) continue;
+    char name[128];
+    name_suffix(names, g->value, name, sizeof name);
+    const long long vox = (long long)voxels_of(img, g->value);
+    if (g->ntets == 0)
+      fprintf(f, "i2m: warning: label %lld%s: absent from the mesh (%lld voxels, %.4g mm3 in the image)\n",
+              (long long)g->value, name, vox, g->voxel_volume);
+    else
+      fprintf(f, "i2m: warning: label %lld%s: mesh volume %.4g mm3 is %+.1f%% off its voxel volume %.4g mm3 (%lld voxels)\n",
+              (long long)g->value, name, g->volume, 100 * rel, g->voxel_volume, vox);
+    lines++;
+  }
+  return lines;
+}
+
 /* The distributed run: totals and every rank's figures (the paper's Fig. 7 breakdown). */
 static void json_dist(FILE *f, const i2m_report_t *r)
 {

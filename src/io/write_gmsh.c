@@ -143,8 +143,8 @@ static i2m_err_t group(int64_t n, int64_t nb, const int64_t *key, int64_t **star
 
 /* The label whose region an interface pair's triangles' normals point out of.  The one place
  * that knows the orientation convention of i2m_tetmesh_t (tetmesh.h: the normal points from
- * tri_label[2i] to tri_label[2i+1]). */
-static int64_t pair_label_left_by_normal(const int64_t *pair) { return pair[0]; }
+ * tri_label[2i+1], the higher label, to tri_label[2i]). */
+static int64_t pair_label_left_by_normal(const int64_t *pair) { return pair[1]; }
 
 /* Each volume's bounding surfaces: the surface entity (pair p: tag p + 1) of every pair that
  * holds its label, + when the pair's normals point out of the volume, - when into it. */

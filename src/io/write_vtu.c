@@ -5,9 +5,10 @@
  *                        else Int64); a piece of a distributed mesh adds the point data
  *                        GlobalNodeId (Int64);
  *   NAME.interfaces.vtu  the interface triangles (VTK_TRIANGLE = 5) on the vertices they use,
- *                        cell data "label_a" and "label_b" (a < b, the material type; 0 is the
- *                        outside), each triangle's normal (right-hand rule) pointing from the
- *                        tissue label_a to label_b; GlobalNodeId for a piece.
+ *                        cell data "label_a" and "label_b" (the lower label first: 0, the
+ *                        outside, then tissues by value; the material type), each triangle's
+ *                        normal (right-hand rule) pointing from label_b to label_a, out of
+ *                        the meshed domain on its boundary; GlobalNodeId for a piece.
  * Appended data, zlib-compressed by default (compressor="vtkZLibDataCompressor": each array is
  * a header [blocks, block size, size of the last partial block or 0, compressed size of each
  * block] then the blocks, each compressed on its own); raw with opts->compress false (each

@@ -110,7 +110,7 @@ static int32_t tet_class(const i2m_refine_t *r, const i2m_pieces_global_t *G, co
 
 /* The claims of split si's voxels by the local tets. */
 static i2m_err_t claim_split(const i2m_refine_t *r, const i2m_pieces_global_t *G, const int32_t *gsplit,
-                             const int32_t *gpos, int32_t si, claims_t *C)
+                             const int32_t *gpos, int32_t si, claims_t *C, i2m_progress_t *pg)
 {
   const i2m_dt_t *dt = r->dt;
   const i2m_edt_t *e = r->edt;
@@ -118,6 +118,7 @@ static i2m_err_t claim_split(const i2m_refine_t *r, const i2m_pieces_global_t *G
   component_box(r, G->split[si].comp, lo, hi);
   const uint32_t n = i2m_dt_ntets_slots(dt);
   for (uint32_t t = 0; t < n; t++) {
+    if ((t & 65535) == 65535) i2m_progress_update(pg, (int64_t)si * n + t);
     if (!i2m_dt_alive(dt, t)) continue;
     const uint32_t *v = dt->tv + 4 * (size_t)t;
     const double *x[4];
@@ -169,7 +170,11 @@ i2m_err_t i2m_refine_split_claims(i2m_refine_t *r, const i2m_pieces_global_t *G,
       gsplit[G->split[s].groups[k]] = (int32_t)s;
       gpos[G->split[s].groups[k]] = (int32_t)k;
     }
-  for (size_t s = 0; s < G->nsplits && err == I2M_OK; s++) err = claim_split(r, G, gsplit, gpos, (int32_t)s, &C);
+  i2m_progress_t pg; /* (a pass over every tet per split component) */
+  const int64_t slots = i2m_dt_ntets_slots(r->dt);
+  i2m_progress_begin_total(&pg, "component rule: voxels of the split components", "tet slots", (int64_t)G->nsplits * slots);
+  for (size_t s = 0; s < G->nsplits && err == I2M_OK; s++) err = claim_split(r, G, gsplit, gpos, (int32_t)s, &C, &pg);
+  i2m_progress_end(&pg, (int64_t)G->nsplits * slots);
   i2m_free(&gsplit);
   i2m_free(&gpos);
   if (err != I2M_OK) {

@@ -1,7 +1,10 @@
 /* Refine layer: extraction of the labelled mesh (REFERENCE §1.8): the tets whose
- * circumcentre is inside, labelled there; the interface triangles between different labels
- * (normal from the smaller label value to the larger); compacted vertices.  The mesher works
- * in world coordinates, so the tets keep the exact positive orientation the kernel gave. */
+ * circumcentre is inside, labelled there; the interface triangles between different labels;
+ * compacted vertices.  The mesher works
+ * in world coordinates, so the tets keep the exact positive orientation the kernel gave.
+ * Triangle orientation (include/i2m/tetmesh.h): the normal points from the higher label to
+ * the lower one, the background ranking below every tissue: out of the meshed domain on the
+ * outer boundary, the Medit / mmg / Gmsh convention. */
 #include "refine_impl.h"
 
 #include <string.h>
@@ -20,20 +23,32 @@ static int64_t neighbour_label(const i2m_refine_t *r, uint32_t t, int i)
  * prefix sums, filled in parallel; the output does not depend on the number of threads. */
 #define EXTRACT_CHUNKS 256
 
-/* The interface faces of kept tet t to write (each once: from the side with the smaller label
- * value, or the only labelled side). */
+/* The number of tet slots in chunk c (for the progress line). */
+static int64_t chunk_slots(const i2m_dt_t *dt, int c)
+{
+  const uint64_t n = i2m_dt_ntets_slots(dt);
+  return (int64_t)(n * (uint64_t)(c + 1) / EXTRACT_CHUNKS - n * (uint64_t)c / EXTRACT_CHUNKS);
+}
+
+/* The interface faces of kept tet t to write (each once: from the side whose label ranks
+ * lower, or from the only labelled side). */
+static bool face_written_here(int64_t lt, int64_t lu)
+{
+  return lu != lt && (lu == 0 || i2m_label_ranks_below(lt, lu));
+}
+
 static int faces_to_write(const i2m_refine_t *r, uint32_t t, int64_t lt, int64_t lu[4])
 {
   int n = 0;
   for (int i = 0; i < 4; i++) {
     lu[i] = neighbour_label(r, t, i);
-    n += lu[i] != lt && (lu[i] == 0 || lt < lu[i]);
+    n += face_written_here(lt, lu[i]);
   }
   return n;
 }
 
 /* Pass 1: per chunk, the kept tets and interface triangles; marks the vertices used. */
-static void extract_count(const i2m_refine_t *r, uint8_t *used, int64_t *ntet, int64_t *ntri)
+static void extract_count(const i2m_refine_t *r, uint8_t *used, int64_t *ntet, int64_t *ntri, i2m_progress_t *pg)
 {
   const i2m_dt_t *dt = r->dt;
   uint32_t nslots = i2m_dt_ntets_slots(dt);
@@ -51,6 +66,7 @@ static void extract_count(const i2m_refine_t *r, uint8_t *used, int64_t *ntet, i
     }
     ntet[c + 1] = nt;
     ntri[c + 1] = nf;
+    i2m_progress_add(pg, chunk_slots(dt, c));
   }
   ntet[0] = ntri[0] = 0;
   for (int c = 0; c < EXTRACT_CHUNKS; c++) { /* offsets */
@@ -74,16 +90,20 @@ static void extract_fill_chunk(const i2m_refine_t *r, const int32_t *vmap, i2m_t
     m->tet_label[kt++] = lt;
     faces_to_write(r, t, lt, lu);
     for (int i = 0; i < 4; i++) {
-      if (lu[i] == lt || !(lu[i] == 0 || lt < lu[i])) continue;
-      int32_t *f = m->tri + 3 * kf; /* outward normal goes from lt to lu: flip when lt is larger */
+      if (!face_written_here(lt, lu[i])) continue;
+      /* FACE_OUT points from lt to lu[i]; the normal must point from the higher label to the
+       * lower: kept when lu[i] is the background (out of the domain), flipped when lt ranks
+       * below the tissue lu[i] */
+      const bool flip = lu[i] != 0;
+      int32_t *f = m->tri + 3 * kf;
       for (int k = 0; k < 3; k++) f[k] = vmap[v[FACE_OUT[i][k]]];
-      if (!(lt < lu[i])) {
+      if (flip) {
         int32_t x = f[0];
         f[0] = f[1];
         f[1] = x;
       }
-      m->tri_label[2 * kf] = lt < lu[i] ? lt : lu[i];
-      m->tri_label[2 * kf + 1] = lt < lu[i] ? lu[i] : lt;
+      m->tri_label[2 * kf] = flip ? lt : lu[i]; /* (the lower first) */
+      m->tri_label[2 * kf + 1] = flip ? lu[i] : lt;
       kf++;
     }
   }
@@ -103,7 +123,9 @@ i2m_err_t i2m_refine_extract(const i2m_refine_t *r, i2m_tetmesh_t **out)
   I2M_CALL_GOTO(err, done, i2m_malloc(nvs, sizeof *vmap, &vmap));
   I2M_CALL_GOTO(err, done, i2m_malloc(EXTRACT_CHUNKS + 1, sizeof *ntet, &ntet));
   I2M_CALL_GOTO(err, done, i2m_malloc(EXTRACT_CHUNKS + 1, sizeof *ntri, &ntri));
-  extract_count(r, used, ntet, ntri);
+  i2m_progress_t pg; /* (two passes over the slots) */
+  i2m_progress_begin_total(&pg, "extraction", "tet slots", 2 * (int64_t)i2m_dt_ntets_slots(dt));
+  extract_count(r, used, ntet, ntri, &pg);
   int64_t nv = 0;
   for (uint32_t v = 0; v < nvs; v++) vmap[v] = used[v] ? (int32_t)nv++ : -1;
   I2M_CALL_GOTO(err, done, i2m_tetmesh_create(nv, ntet[EXTRACT_CHUNKS], ntri[EXTRACT_CHUNKS], &m));
@@ -115,7 +137,11 @@ i2m_err_t i2m_refine_extract(const i2m_refine_t *r, i2m_tetmesh_t **out)
     if (m->gid) m->gid[vmap[v]] = i2m_dt_gid(dt, (uint32_t)v);
   }
   I2M_OMP(omp parallel for schedule(dynamic, 4))
-  for (int c = 0; c < EXTRACT_CHUNKS; c++) extract_fill_chunk(r, vmap, m, c, ntet[c], ntri[c]);
+  for (int c = 0; c < EXTRACT_CHUNKS; c++) {
+    extract_fill_chunk(r, vmap, m, c, ntet[c], ntri[c]);
+    i2m_progress_add(&pg, chunk_slots(dt, c));
+  }
+  i2m_progress_end(&pg, 2 * (int64_t)i2m_dt_ntets_slots(dt));
   *out = m;
   m = NULL;
 done:

@@ -49,8 +49,16 @@ static void uf_union(_Atomic uint32_t *par, uint32_t a, uint32_t b)
   }
 }
 
+/* Progress of the passes over the tet slots: a line every 2 s (i2m_progress_add), each thread
+ * adding its share every PROGRESS_STEP slots (a power of two). */
+#define PROGRESS_STEP 65536
+static inline void slot_done(i2m_progress_t *pg, int64_t t)
+{
+  if ((t & (PROGRESS_STEP - 1)) == PROGRESS_STEP - 1) i2m_progress_add(pg, PROGRESS_STEP);
+}
+
 /* par[t] = the smallest slot of t's part. */
-static void find_parts(const i2m_dt_t *dt, _Atomic uint32_t *par)
+static void find_parts(const i2m_dt_t *dt, _Atomic uint32_t *par, i2m_progress_t *pg)
 {
   const int64_t n = i2m_dt_ntets_slots(dt);
   I2M_OMP(omp parallel)
@@ -59,6 +67,7 @@ static void find_parts(const i2m_dt_t *dt, _Atomic uint32_t *par)
     for (int64_t t = 0; t < n; t++) atomic_init(&par[t], (uint32_t)t);
     I2M_OMP(omp for schedule(dynamic, 4096))
     for (int64_t t = 0; t < n; t++) {
+      slot_done(pg, t);
       if (!tet_kept(dt, (uint32_t)t)) continue;
       const uint16_t l = tinfo(dt, (uint32_t)t)->label;
       for (int i = 0; i < 4; i++) {
@@ -205,12 +214,13 @@ static i2m_err_t comp_entry(pieces_t *P, comp_index_t *H, uint32_t part, int64_t
 
 /* Every part's tets, volume, least tet, and volume per image component (with the least tet in
  * each, where the bridges' search starts); tet t's component into idx[t]. */
-static i2m_err_t describe_parts(const i2m_refine_t *r, pieces_t *P)
+static i2m_err_t describe_parts(const i2m_refine_t *r, pieces_t *P, i2m_progress_t *pg)
 {
   const i2m_dt_t *dt = r->dt;
   const uint32_t n = i2m_dt_ntets_slots(dt);
   I2M_OMP(omp parallel for schedule(dynamic, 4096))
   for (int64_t t = 0; t < (int64_t)n; t++) {
+    slot_done(pg, t);
     if (!tet_kept(dt, (uint32_t)t)) continue;
     const int64_t c = tet_component(r, (uint32_t)t);
     atomic_store_explicit(&P->idx[t], c < 0 || c >= UINT32_MAX ? UINT32_MAX : (uint32_t)c, memory_order_relaxed);
@@ -220,6 +230,7 @@ static i2m_err_t describe_parts(const i2m_refine_t *r, pieces_t *P)
   i2m_err_t err = I2M_OK;
   uint32_t last_part = UINT32_MAX, last_comp = UINT32_MAX, e = 0; /* (neighbouring slots: often one entry) */
   for (uint32_t t = 0; t < n && err == I2M_OK; t++) {
+    slot_done(pg, t);
     if (!tet_kept(dt, t)) continue;
     const uint32_t pi = atomic_load_explicit(&P->par[t], memory_order_relaxed);
     i2m_part_t *p = &P->part[pi];
@@ -322,17 +333,14 @@ i2m_err_t pieces_build(i2m_refine_t *r, pieces_t *P)
   i2m_err_t err = I2M_OK;
   I2M_CALL_GOTO(err, fail, i2m_malloc(n ? n : 1, sizeof *P->par, &P->par));
   I2M_CALL_GOTO(err, fail, i2m_malloc(n ? n : 1, sizeof *P->idx, &P->idx));
-  const double t0 = i2m_wtime();
-  find_parts(dt, P->par);
-  const double t1 = i2m_wtime();
+  i2m_progress_t pg; /* (three passes over the slots: most of the time on large meshes) */
+  i2m_progress_begin_total(&pg, "mesh pieces (components per label)", "tet slots", 3 * (int64_t)n);
+  find_parts(dt, P->par, &pg);
   I2M_CALL_GOTO(err, fail, list_parts(r, P));
-  const double t2 = i2m_wtime();
-  I2M_CALL_GOTO(err, fail, describe_parts(r, P));
-  const double t3 = i2m_wtime();
+  I2M_CALL_GOTO(err, fail, describe_parts(r, P, &pg));
   I2M_CALL_GOTO(err, fail, describe_areas(r, P));
   I2M_CALL_GOTO(err, fail, describe_faces(r, P));
-  i2m_debug("pieces: %zu parts of %u tet slots; find %.2f s, list %.2f s, describe %.2f s, areas and faces %.2f s", P->nparts, n,
-            t1 - t0, t2 - t1, t3 - t2, i2m_wtime() - t3);
+  i2m_progress_end(&pg, 3 * (int64_t)n);
   return I2M_OK;
 fail:
   pieces_free(P);

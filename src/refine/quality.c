@@ -46,11 +46,14 @@ static i2m_err_t tet_figures(const i2m_tetmesh_t *m, i2m_quality_t *q)
   angle_bins_init(bins);
   double maxc = -1, minc = 1, maxre = 0;
   int64_t above = 0;
+  i2m_progress_t pg;
+  i2m_progress_begin_total(&pg, "quality figures", "tets", m->nt);
   I2M_OMP(omp parallel reduction(max : maxc, maxre) reduction(min : minc) reduction(+ : above))
   {
     int64_t hist[180] = {0};
     I2M_OMP(omp for schedule(static))
     for (int64_t t = 0; t < m->nt; t++) {
+      if ((t & 65535) == 65535) i2m_progress_add(&pg, 65536); /* (one thread prints, every 2 s) */
       const int32_t *v = m->tet + 4 * t;
       const double *a = m->xyz + 3 * (size_t)v[0], *b = m->xyz + 3 * (size_t)v[1];
       const double *c = m->xyz + 3 * (size_t)v[2], *d = m->xyz + 3 * (size_t)v[3];
@@ -68,6 +71,7 @@ static i2m_err_t tet_figures(const i2m_tetmesh_t *m, i2m_quality_t *q)
     I2M_OMP(omp critical(i2m_quality_hist))
     for (int k = 0; k < 180; k++) q->dihedral_hist[k] += hist[k];
   }
+  i2m_progress_end(&pg, m->nt);
   q->min_dihedral = m->nt ? i2m_degrees_of_cosine(maxc) : 0;
   q->max_dihedral = m->nt ? i2m_degrees_of_cosine(minc) : 0;
   q->max_radius_edge = maxre;

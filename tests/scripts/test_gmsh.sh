@@ -75,7 +75,7 @@ for dim, tag in gmsh.model.getEntities(3):
         ok = len(bnd) > 0
         for _, s in bnd:
             ab = pair[gmsh.model.getPhysicalGroupsForEntity(2, abs(s))[0]]
-            ok = ok and label in ab and (s > 0) == (label == ab[0])
+            ok = ok and label in ab and (s > 0) == (label == ab[1])  # (normals from the higher label to the lower)
         if not ok:
             bad_boundaries += 1
             print(f"     volume {tag} (label {label}): boundary {bnd}")

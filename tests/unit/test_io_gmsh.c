@@ -69,7 +69,8 @@ static int64_t label_across(const i2m_tetmesh_t *m, int64_t t, const int32_t *fa
   return 0;
 }
 
-/* Interface triangles as tetmesh.h says: labels (a < b), normal from a to b. */
+/* Interface triangles as tetmesh.h says: labels (a < b, the background 0 first), the normal
+ * from the higher label b to the lower a (out of the domain on the outer boundary). */
 static void derive_triangles(i2m_tetmesh_t *m)
 {
   m->ntri = 0;
@@ -80,7 +81,7 @@ static void derive_triangles(i2m_tetmesh_t *m)
       const int64_t mine = m->tet_label[t], other = label_across(m, t, face);
       if (other == mine || (other != 0 && other < mine)) continue; /* (each interface once) */
       int32_t *tri = m->tri + 3 * m->ntri;
-      const int outward = mine < other; /* normal out of this tet: from mine to other */
+      const int outward = mine > other; /* normal out of this tet: from mine, the higher, to other */
       tri[0] = face[0];
       tri[1] = outward ? face[1] : face[2];
       tri[2] = outward ? face[2] : face[1];
@@ -205,10 +206,10 @@ static void test_names_and_boundaries(void)
   /* no quote nor newline inside a name; a name two labels share made unique */
   CU_ASSERT(strstr(text, "3 5 \"bone 'x'__5\"\n") != NULL);
   CU_ASSERT(strstr(text, "3 7 \"bone 'x'__7\"\n") != NULL);
-  /* surfaces 1 = (0,5), 2 = (0,7), 3 = (5,7); normals from a to b: out of 5 through 3, into 5
-   * through 1, into 7 through 2 and 3 */
-  CU_ASSERT(strstr(text, " 1 5 2 -1 3 \n") != NULL);
-  CU_ASSERT(strstr(text, " 1 7 2 -2 -3 \n") != NULL);
+  /* surfaces 1 = (0,5), 2 = (0,7), 3 = (5,7); normals from b to a: out of 5 through 1, into 5
+   * through 3, out of 7 through 2 and 3 */
+  CU_ASSERT(strstr(text, " 1 5 2 1 -3 \n") != NULL);
+  CU_ASSERT(strstr(text, " 1 7 2 2 3 \n") != NULL);
   remove(tmp_path("names.msh"));
   names.n = 1; /* label 7 without a name */
   write_read(m, "names.msh", &o);

@@ -90,7 +90,7 @@ static void derive_tris(i2m_tetmesh_t *m)
     if (lt != lo) {
       const int32_t *tv = m->tet + 4 * (id / 4);
       const int *fv = F[id % 4];
-      int keep = lt < lo;
+      int keep = i2m_label_ranks_below(lo, lt); /* normal from the higher label to the lower */
       m->tri[3 * n] = tv[fv[0]];
       m->tri[3 * n + 1] = tv[keep ? fv[1] : fv[2]];
       m->tri[3 * n + 2] = tv[keep ? fv[2] : fv[1]];
@@ -1112,7 +1112,7 @@ static const test_case_t cases[] = {
 static void remove_tmpdir(void)
 {
   if (!tmpdir[0]) return;
-  const char *names[] = {"a.vtu", "a.mesh", "a.msh", "ascii.msh", "wide.vtu", "bad.vtu",
+  const char *names[] = {"a.vtu", "a.mesh", "a.mesh.json", "a.msh", "ascii.msh", "wide.vtu", "bad.vtu",
                          "zero.msh", "x.obj", "full.msh", "ascii.vtu", "u32.vtu",
                          "pv_0.vtu", "pv_1.vtu", "pv.pvtu", "z.vtu", "r.vtu",
                          "a.interfaces.vtu", "wide.interfaces.vtu", "pv_0.interfaces.vtu",

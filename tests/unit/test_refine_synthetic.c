@@ -75,6 +75,42 @@ static void run_free(run_t *r)
   i2m_image_destroy(&r->img);
 }
 
+/* Interface triangles point from the higher label to the lower (out of the domain on the
+ * outer boundary): by the divergence theorem, each label's closed surface, its triangles
+ * taken outward (the pairs where it is the higher label) and inward (where it is the lower),
+ * encloses a signed volume equal to its tets' volume.  A triangle flipped the wrong way
+ * changes that sum by twice its cone volume; all of them flipped negate it. */
+static void check_orientation(const i2m_tetmesh_t *m)
+{
+  enum { MAXL = 8 };
+  int64_t lab[MAXL];
+  double tets[MAXL] = {0}, surface[MAXL] = {0}, total = 0;
+  int nl = 0;
+  for (int64_t t = 0; t < m->nt; t++) {
+    int k = 0;
+    while (k < nl && lab[k] != m->tet_label[t]) k++;
+    if (k == nl) {
+      CU_ASSERT_FATAL(nl < MAXL);
+      lab[nl++] = m->tet_label[t];
+    }
+    const int32_t *v = m->tet + 4 * t;
+    double vol = i2m_tet_signed_volume6(m->xyz + 3 * v[0], m->xyz + 3 * v[1], m->xyz + 3 * v[2], m->xyz + 3 * v[3]);
+    tets[k] += vol;
+    total += vol;
+  }
+  const double origin[3] = {0, 0, 0};
+  for (int64_t f = 0; f < m->ntri; f++) {
+    const int32_t *v = m->tri + 3 * f;
+    double cone = i2m_tet_signed_volume6(origin, m->xyz + 3 * v[0], m->xyz + 3 * v[1], m->xyz + 3 * v[2]);
+    for (int k = 0; k < nl; k++) {
+      if (lab[k] == m->tri_label[2 * f + 1]) surface[k] += cone; /* the higher: outward */
+      if (lab[k] == m->tri_label[2 * f]) surface[k] -= cone;
+    }
+  }
+  CU_ASSERT(total > 0);
+  for (int k = 0; k < nl; k++) CU_ASSERT(fabs(surface[k] - tets[k]) <= 1e-9 * total);
+}
+
 /* Checks the guarantees on the extracted mesh (world coordinates). */
 static void check_mesh(const run_t *r, double ratio)
 {
@@ -97,6 +133,7 @@ static void check_mesh(const run_t *r, double ratio)
   for (int64_t f = 0; f < m->ntri; f++) { /* label pairs ordered and differing */
     CU_ASSERT(m->tri_label[2 * f] < m->tri_label[2 * f + 1]);
   }
+  check_orientation(m);
 }
 
 static void test_nested_shells(void)

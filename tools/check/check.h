@@ -84,7 +84,9 @@ void ck_stitch_free(ck_stitch_t **st);
 /* ---- interface triangles derived from the tetrahedra ---- */
 typedef struct {
   int64_t n;
-  int32_t *v;   /* owned: [n][3] vertices, normal pointing from lab[2i] to lab[2i+1] */
+  int32_t *v;   /* owned: [n][3] vertices, oriented outward: the normal points from the
+                   higher label to the lower (the background 0 ranks lowest), out of the mesh
+                   on its outer boundary */
   int64_t *lab; /* owned: [n][2] label pair, lab[2i] < lab[2i+1]; 0 = outside the mesh */
 } ck_iface_t;
 
@@ -107,7 +109,9 @@ typedef struct {
   int64_t interface_triangles, interface_pairs;
   /* comparison of the file's triangles with the derived ones */
   int64_t file_triangles, file_not_interface, interface_not_in_file, file_label_mismatch,
-      file_duplicate, file_flipped;
+      file_duplicate;
+  int64_t file_outward, file_inward; /* matched file triangles oriented each way */
+  int64_t file_flipped;              /* those against the file's majority (mixed: invalid) */
   char errors[512]; /* comma-separated defect names */
 } ck_validity_t;
 
@@ -121,6 +125,10 @@ typedef struct {
 
 i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo);
 void ck_topo_free(ck_topo_t *t);
+/** The orientation of the file's interface triangles: "outward" (normals from the higher
+ *  label to the lower, out of the domain on the outer boundary), "inward", "mixed" (both:
+ *  invalid) or "none" (no file triangle matched). */
+const char *ck_validity_orientation(const ck_validity_t *v);
 /** Appends a defect name to v->errors and marks the mesh invalid. */
 void ck_validity_add_error(ck_validity_t *v, const char *name);
 /** For a stitched mesh (m->stitch): looks for faces seen by one side only (d, with the face

@@ -62,7 +62,10 @@ static void json_validity(FILE *f, const ck_validity_t *v)
   JI(f, "interfaces_missing_from_file", v->interface_not_in_file, 0);
   JI(f, "file_triangle_label_mismatch", v->file_label_mismatch, 0);
   JI(f, "file_triangles_duplicate", v->file_duplicate, 0);
-  JI(f, "file_triangles_flipped", v->file_flipped, 1);
+  JI(f, "file_triangles_outward", v->file_outward, 0);
+  JI(f, "file_triangles_inward", v->file_inward, 0);
+  JI(f, "file_triangles_flipped", v->file_flipped, 0);
+  fprintf(f, "\"triangle_orientation\": \"%s\"", ck_validity_orientation(v));
   fprintf(f, "}");
 }
 
@@ -308,10 +311,13 @@ static void text_validity(FILE *f, const ck_validity_t *v)
           (long long)v->interface_triangles, (long long)v->interface_pairs);
   if (v->file_triangles || v->tri_bad_index)
     fprintf(f, "  file triangles: %lld; not interfaces %lld, interfaces missing %lld, label pair "
-               "mismatches %lld, duplicates %lld, flipped %lld, bad ids %lld\n",
+               "mismatches %lld, duplicates %lld, bad ids %lld\n"
+               "  file triangle orientation: %s (%lld outward: normal from the higher label to the "
+               "lower, out of the domain; %lld inward)\n",
             (long long)v->file_triangles, (long long)v->file_not_interface,
             (long long)v->interface_not_in_file, (long long)v->file_label_mismatch,
-            (long long)v->file_duplicate, (long long)v->file_flipped, (long long)v->tri_bad_index);
+            (long long)v->file_duplicate, (long long)v->tri_bad_index, ck_validity_orientation(v),
+            (long long)v->file_outward, (long long)v->file_inward);
 }
 
 static void text_quality(FILE *f, const ck_quality_t *q)

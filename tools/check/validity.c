@@ -3,7 +3,10 @@
  * their smallest vertex, then sorted by the other two): each face is used once (boundary) or
  * twice (interior, by two tetrahedra on opposite sides), never three times; no dangling or
  * duplicate vertices; the boundary surface is closed; interface triangles derived from the
- * tetrahedra, compared with the file's triangles when it has some. */
+ * tetrahedra, compared with the file's triangles when it has some.  Either orientation of
+ * the file's triangles is accepted, outward (from the higher label to the lower: out of the
+ * domain on the outer boundary, what i2m writes) or inward, if the whole file agrees: a file
+ * that mixes both is invalid, since no reader can tell which way its surfaces face. */
 #include "check.h"
 
 #include <math.h>
@@ -205,8 +208,16 @@ static i2m_err_t vertices(const ck_mesh_t *m, ck_validity_t *v)
   return I2M_OK;
 }
 
+/* Does label a rank below label b?  The background 0 ranks below every tissue, tissues by
+ * value: the "outward" orientation points from the higher-ranked label to the lower, out of
+ * the meshed domain on the outer boundary (the Medit / mmg / Gmsh convention). */
+static int ranks_below(int64_t a, int64_t b)
+{
+  return a != b && (a == 0 || (b != 0 && a < b));
+}
+
 /* Interface triangles from the tetrahedra: boundary faces (label vs 0) and faces between
- * two labels, oriented from the smaller label to the larger. */
+ * two labels, oriented outward (from the higher-ranked label to the lower). */
 static i2m_err_t derive_interfaces(const ck_mesh_t *m, ck_topo_t *topo)
 {
   ck_iface_t *f = &topo->iface;
@@ -226,7 +237,7 @@ static i2m_err_t derive_interfaces(const ck_mesh_t *m, ck_topo_t *topo)
       if (pass == 1) {
         const int64_t *tv = m->tet + 4 * (id / 4);
         const int *F = FACE[id % 4];
-        int keep = lt < lo; /* outward normal points from lt to lo */
+        int keep = ranks_below(lo, lt); /* the face's normal points out of this tet, to lo */
         f->v[3 * n] = (int32_t)tv[F[0]];
         f->v[3 * n + 1] = (int32_t)tv[keep ? F[1] : F[2]];
         f->v[3 * n + 2] = (int32_t)tv[keep ? F[2] : F[1]];
@@ -253,6 +264,8 @@ static int cmp_tkey(const void *x, const void *y)
   return 0;
 }
 
+/* The file's triangles against the derived ones: each file triangle is matched by vertex set
+ * and counted as outward or inward (the derived ones are outward). */
 static i2m_err_t compare_file(const ck_mesh_t *m, const ck_topo_t *topo, ck_validity_t *v)
 {
   const ck_iface_t *f = &topo->iface;
@@ -288,7 +301,10 @@ static i2m_err_t compare_file(const ck_mesh_t *m, const ck_topo_t *topo, ck_vali
       j++;
     } else {
       if (m->tri_labels_known && (d[i].a != t[j].a || d[i].b != t[j].b)) v->file_label_mismatch++;
-      if (d[i].par != t[j].par) v->file_flipped++;
+      if (d[i].par == t[j].par)
+        v->file_outward++;
+      else
+        v->file_inward++;
       i++;
       j++;
     }
@@ -378,6 +394,7 @@ i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo)
   v->interface_triangles = topo->iface.n;
   I2M_CALL_GOTO(err, out, count_pairs(&topo->iface, &v->interface_pairs));
   if (m->has_tri && !v->tri_bad_index) I2M_CALL_GOTO(err, out, compare_file(m, topo, v));
+  v->file_flipped = v->file_outward < v->file_inward ? v->file_outward : v->file_inward;
   if (v->inverted) ck_validity_add_error(v, "inverted");
   if (v->degenerate) ck_validity_add_error(v, "degenerate");
   if (v->nonmanifold_faces) ck_validity_add_error(v, "nonmanifold_face");
@@ -389,7 +406,7 @@ i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo)
   if (v->interface_not_in_file) ck_validity_add_error(v, "interface_missing_from_file");
   if (v->file_label_mismatch) ck_validity_add_error(v, "interface_label_mismatch");
   if (v->file_duplicate) ck_validity_add_error(v, "duplicate_file_triangle");
-  if (v->file_flipped) ck_validity_add_error(v, "flipped_file_triangle");
+  if (v->file_outward && v->file_inward) ck_validity_add_error(v, "mixed_triangle_orientation");
 out:
   v->valid = v->errors[0] == '\0';
   i2m_free(&sgn);
@@ -402,4 +419,11 @@ void ck_topo_free(ck_topo_t *t)
   i2m_free(&t->vol);
   i2m_free(&t->iface.v);
   i2m_free(&t->iface.lab);
+}
+
+const char *ck_validity_orientation(const ck_validity_t *v)
+{
+  if (v->file_outward && v->file_inward) return "mixed";
+  if (v->file_inward) return "inward";
+  return v->file_outward ? "outward" : "none";
 }

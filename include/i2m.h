@@ -48,9 +48,16 @@ typedef struct {
   int nlabel_sizes;      /**< --size-label: that many (label, size) pairs */
   const int64_t *label_size_values; /**< [nlabel_sizes] label values (borrowed) */
   const double *label_sizes;        /**< [nlabel_sizes] their size bounds (borrowed) */
+  int nregions;          /**< --region: that many world boxes with their own bounds */
+  const double *regions; /**< [nregions][8]: x0, y0, z0, x1, y1, z1 (opposite corners, mm), size,
+                              ratio (0: o.ratio) (borrowed) */
   double sliver_angle;   /**< sliver perturbation target in degrees (--sliver-angle); 0: off */
   int threads;           /**< OpenMP threads; 0: all cores (default) */
   int deterministic;     /**< 1: the same mesh for any number of threads (--deterministic) */
+  int depth;             /**< --depth of the deterministic mode's octree; 0: the default */
+  double coarse_factor;  /**< a coarse mesh first at this factor (--coarse-factor, 4; 1: none) */
+  int pin;               /**< 1: bind the threads to cores (default 0: the caller's threads are its own) */
+  int check;             /**< 1: check the triangulation before extraction (--check; slow) */
   uint64_t seed;         /**< random seed (--seed) */
   double max_memory;     /**< refuse runs estimated above this many bytes; 0: the machine's memory */
   int verbose;           /**< 0: silent (default), 1: progress lines on stderr, 2: debug lines */

@@ -35,7 +35,9 @@ class _Options(ctypes.Structure):
     _fields_ = [("delta", ctypes.c_double), ("ratio", ctypes.c_double), ("facet_angle", ctypes.c_double),
                 ("size", ctypes.c_double), ("nlabel_sizes", ctypes.c_int),
                 ("label_size_values", ctypes.POINTER(ctypes.c_int64)), ("label_sizes", ctypes.POINTER(ctypes.c_double)),
+                ("nregions", ctypes.c_int), ("regions", ctypes.POINTER(ctypes.c_double)),
                 ("sliver_angle", ctypes.c_double), ("threads", ctypes.c_int), ("deterministic", ctypes.c_int),
+                ("depth", ctypes.c_int), ("coarse_factor", ctypes.c_double), ("pin", ctypes.c_int), ("check", ctypes.c_int),
                 ("seed", ctypes.c_uint64), ("max_memory", ctypes.c_double), ("verbose", ctypes.c_int)]
 
 
@@ -106,9 +108,17 @@ def _options(lib, opts):
             o.nlabel_sizes = len(values)
             o.label_size_values = values.ctypes.data_as(ctypes.POINTER(ctypes.c_int64))
             o.label_sizes = sizes.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
-        elif key in ("deterministic", "verbose", "threads"):
+        elif key == "regions":  # [(x0, y0, z0, x1, y1, z1, size[, ratio]), ...]
+            rows = [list(map(float, r)) + [0.0] * (8 - len(r)) for r in value]
+            if any(len(r) != 8 for r in rows):
+                raise ValueError("a region is (x0, y0, z0, x1, y1, z1, size[, ratio])")
+            regions = np.ascontiguousarray(np.array(rows, dtype=np.float64).reshape(-1))
+            keep.append(regions)
+            o.nregions = len(rows)
+            o.regions = regions.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        elif key in ("deterministic", "verbose", "threads", "depth", "pin", "check"):
             setattr(o, key, int(value))
-        elif key in ("delta", "ratio", "facet_angle", "size", "sliver_angle", "max_memory", "seed"):
+        elif key in ("delta", "ratio", "facet_angle", "size", "sliver_angle", "max_memory", "seed", "coarse_factor"):
             setattr(o, key, value)
         else:
             raise TypeError("unknown i2m option %r" % key)
@@ -117,8 +127,10 @@ def _options(lib, opts):
 
 def mesh_arrays(labels, spacing=(1.0, 1.0, 1.0), origin=None, direction=None, axes="zyx", **opts):
     """Meshes `labels`; returns (points [P,3], tets [T,4], materials [T], triangles [F,3],
-    triangle_labels [F,2]) as numpy arrays.  Options: delta, ratio, facet_angle, size,
-    size_labels={label: size}, sliver_angle, threads, deterministic, seed, max_memory, verbose."""
+    triangle_labels [F,2]) as numpy arrays.  Options (those of the command line): delta, ratio,
+    facet_angle, size, size_labels={label: size}, regions=[(x0, y0, z0, x1, y1, z1, size[, ratio])],
+    sliver_angle, threads, deterministic, depth, coarse_factor, pin, check, seed, max_memory,
+    verbose (0 silent, 1 progress, 2 debug)."""
     lib = _library()
     a = np.asarray(labels)
     if a.ndim != 3:

@@ -19,6 +19,7 @@ void i2m_options_init(i2m_options_t *o)
   o->facet_angle = p.facet_angle;
   o->size = 0; /* (no bound) */
   o->seed = p.seed;
+  o->coarse_factor = 4.0; /* (as --coarse-factor's default) */
 }
 
 const char *i2m_last_error(void) { return i2m_error_message(); }
@@ -76,8 +77,34 @@ static i2m_err_t image_from_labels(const void *labels, i2m_label_type_t type, co
   return err;
 }
 
-/* The refinement parameters from the options (label sizes into *sizes, owned by the caller). */
-static i2m_err_t params_from_options(const i2m_options_t *o, i2m_refine_params_t *p, i2m_label_size_t **sizes)
+/* The options' regions as the refinement's (into *regions, owned by the caller), checked as
+ * --region is. */
+static i2m_err_t regions_from_options(const i2m_options_t *o, i2m_region_t **regions)
+{
+  I2M_CHECK(o->nregions >= 0 && (o->nregions == 0 || o->regions), I2M_ERR_ARG,
+            "i2m_mesh_labels: %d regions without their array", o->nregions);
+  if (o->nregions == 0) return I2M_OK;
+  I2M_CALL(i2m_malloc((size_t)o->nregions, sizeof **regions, regions));
+  for (int k = 0; k < o->nregions; k++) {
+    const double *x = o->regions + 8 * k;
+    i2m_region_t *g = &(*regions)[k];
+    for (int a = 0; a < 3; a++) {
+      I2M_CHECK(isfinite(x[a]) && isfinite(x[a + 3]), I2M_ERR_ARG, "i2m_mesh_labels: region %d: the corners must be finite", k);
+      g->lo[a] = fmin(x[a], x[a + 3]);
+      g->hi[a] = fmax(x[a], x[a + 3]);
+      I2M_CHECK(g->lo[a] < g->hi[a], I2M_ERR_ARG, "i2m_mesh_labels: region %d: the box is empty along axis %d", k, a);
+    }
+    I2M_CHECK(x[6] > 0, I2M_ERR_ARG, "i2m_mesh_labels: region %d: the size must be positive", k);
+    g->size = x[6];
+    g->ratio = x[7] != 0 ? x[7] : o->ratio;
+  }
+  return I2M_OK;
+}
+
+/* The refinement parameters from the options (label sizes and regions into *sizes and
+ * *regions, owned by the caller). */
+static i2m_err_t params_from_options(const i2m_options_t *o, i2m_refine_params_t *p, i2m_label_size_t **sizes,
+                                     i2m_region_t **regions)
 {
   i2m_refine_params_default(p);
   p->delta = o->delta == 0 ? NAN : o->delta; /* (NAN: the default, from the spacing; a negative one is refused) */
@@ -97,6 +124,9 @@ static i2m_err_t params_from_options(const i2m_options_t *o, i2m_refine_params_t
   }
   p->nlabel_sizes = o->nlabel_sizes;
   p->label_sizes = *sizes;
+  I2M_CALL(regions_from_options(o, regions));
+  p->nregions = o->nregions;
+  p->regions = *regions;
   return I2M_OK;
 }
 
@@ -134,11 +164,16 @@ static i2m_err_t mesh_image(i2m_image_t *img, const i2m_options_t *o, i2m_refine
   p.img = img;
   p.opt = (i2m_pipeline_opts_t){.params = *params,
                                 .threads = o->threads,
-                                .coarse_factor = 4.0, /* (as --coarse-factor's default) */
+                                .depth = o->depth,
+                                .coarse_factor = o->coarse_factor,
                                 .sliver_angle = o->sliver_angle,
                                 .max_memory = o->max_memory,
-                                .pin = false, /* (the caller's threads are the caller's) */
-                                .deterministic = o->deterministic != 0};
+                                .pin = o->pin != 0,
+                                .deterministic = o->deterministic != 0,
+                                .check = o->check != 0};
+  I2M_CHECK(o->coarse_factor >= 1, I2M_ERR_ARG, "i2m_mesh_labels: coarse_factor must be at least 1 (got %g)",
+            o->coarse_factor);
+  I2M_CHECK(o->depth >= 0 && o->depth <= 6, I2M_ERR_ARG, "i2m_mesh_labels: depth must be between 0 and 6 (got %d)", o->depth);
   i2m_err_t err = i2m_pipeline_check_estimate(&par, img, &p.opt);
   if (err == I2M_OK) err = i2m_pipeline_mesh(&p);
   if (err == I2M_OK) err = take_mesh(p.mesh, out);
@@ -163,12 +198,14 @@ int i2m_mesh_labels(const void *labels, i2m_label_type_t type, const int64_t dim
   if (o->threads > 0) i2m_threads_limit(o->threads);
   i2m_image_t *img = NULL;
   i2m_label_size_t *sizes = NULL;
+  i2m_region_t *regions = NULL;
   i2m_refine_params_t params;
-  i2m_err_t err = params_from_options(o, &params, &sizes);
+  i2m_err_t err = params_from_options(o, &params, &sizes, &regions);
   if (err == I2M_OK) err = image_from_labels(labels, type, dims, spacing, origin, direction, &img);
   if (err == I2M_OK) err = mesh_image(img, o, &params, mesh);
   i2m_image_destroy(&img);
   i2m_free(&sizes);
+  i2m_free(&regions);
   i2m_log_set_level(level);
   return err == I2M_OK ? 0 : err == I2M_ERR_ARG ? 2 : 1;
 }

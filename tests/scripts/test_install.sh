@@ -5,7 +5,8 @@
 # builds through pkg-config (shared, and static with --static) and its mesh follows the
 # image (per-label volumes within 5% of the voxels'); every option of --help is in the man
 # page; the Python module (ctypes, numpy) meshes an array into a meshio.Mesh whose tet count
-# and per-label volumes equal those of bin/i2m on the same image (both --deterministic).
+# and per-label volumes equal those of bin/i2m on the same image with the same options (both
+# --deterministic, a label size and a region).
 set -eu
 . "$(dirname "$0")/guarantees.sh"
 unset MAKEFLAGS MFLAGS MAKEOVERRIDES MAKELEVEL # (a make of its own, not the caller's)
@@ -73,14 +74,16 @@ a = np.zeros((20, 36, 30), dtype=np.int16)
 a[(x - 14) ** 2 + (y - 17) ** 2 / 1.5 + 4 * (z - 9) ** 2 < 120] = 7
 a[(x - 12) ** 2 + (y - 15) ** 2 + 4 * (z - 10) ** 2 < 25] = 300
 spacing, origin = (0.8, 0.8, 1.6), (-10.0, 5.0, 20.0)
-m = i2m.mesh(a, spacing=spacing, origin=origin, deterministic=1, threads=1)
+m = i2m.mesh(a, spacing=spacing, origin=origin, deterministic=1, threads=1,
+             size_labels={300: 1.0}, regions=[(-5, 10, 25, 5, 20, 35, 1.5)])
 # the same image as a NRRD file for bin/i2m
 with open(tmp + "/py.nrrd", "wb") as f:
     f.write(("NRRD0004\ntype: int16\ndimension: 3\nsizes: 30 36 20\nspace: left-posterior-superior\n"
              "space directions: (0.8,0,0) (0,0.8,0) (0,0,1.6)\nspace origin: (-10,5,20)\nendian: little\n"
              "encoding: raw\n\n").encode())
     f.write(a.astype("<i2").tobytes())
-subprocess.run([exe, tmp + "/py.nrrd", "-o", tmp + "/py.vtu", "--deterministic", "--threads", "1", "--quiet"], check=True)
+subprocess.run([exe, tmp + "/py.nrrd", "-o", tmp + "/py.vtu", "--deterministic", "--threads", "1", "--quiet",
+                "--size-label", "300=1", "--region", "-5,10,25,5,20,35:1.5"], check=True)
 c = meshio.read(tmp + "/py.vtu")
 def volumes(points, tets, mat):
     p = points[tets]

@@ -145,7 +145,7 @@ import numpy as np, meshio
 import xml.etree.ElementTree as ET
 svg, mesh, want = sys.argv[1], sys.argv[2], sys.argv[3]
 root = ET.parse(svg).getroot()
-axis, c = root.get("data-axis"), float(root.get("data-coordinate-mm"))
+axis, c = root.get("data-axis"), float(root.get("data-coordinate-mm"))  # (the exact double: %.17g)
 m = meshio.read(mesh)
 pts = m.points
 if want.startswith("frac"):  # fraction of the mesh's box (no --image)

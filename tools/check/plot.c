@@ -428,8 +428,8 @@ static void write_section(FILE *f, const view_t *w, const cut_t *cut, int64_t n,
   const double W = w->x0 + w->pw + 40 + fmax((double)cols * column, LEGEND_FOOTNOTE_WIDTH);
   const double H = fmax(w->y0 + w->ph + 80, w->y0 + (rows + 2) * LEGEND_ROW);
   fprintf(f, "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" height=\"%.0f\" font-family=\"sans-serif\" "
-             "font-size=\"12\" data-axis=\"%c\" data-coordinate-mm=\"%.6g\">\n", W, H, AXIS_NAME[w->axis],
-          tidy(w->c));
+             "font-size=\"12\" data-axis=\"%c\" data-coordinate-mm=\"%.17g\">\n", W, H, AXIS_NAME[w->axis],
+          w->c); /* (exact: a reader can classify the vertices as the cut did) */
   fprintf(f, "<rect width=\"100%%\" height=\"100%%\" fill=\"white\"/>\n");
   fprintf(f, "<text x=\"10\" y=\"22\" font-size=\"15\">Cross-section %c = %.3f mm (world coordinates, the "
              "mesh file's)</text>\n", AXIS_NAME[w->axis], tidy(w->c));

@@ -75,8 +75,8 @@ checksum() { "$PY" -c "import json,sys; print(json.load(open(sys.argv[1]))['coun
 run_image() {
   img=$1 opts=$2 name=$(basename "$1")
   # shellcheck disable=SC2086 # (opts: words)
-  if ! timeout 300 "$BIN/i2m" "$img" -o "$TMP/ref.vtu" --deterministic --threads 2 $opts --quiet --report "$TMP/ref_rep.json" ||
-    ! timeout 300 "$BIN/i2m" "$img" -o "$TMP/spec.vtu" --threads 2 $opts --quiet --report "$TMP/spec_rep.json"; then
+  if ! timeout 300 "$BIN/i2m" "$img" -o "$TMP/ref.vtu" --vtu-raw --deterministic --threads 2 $opts --quiet --report "$TMP/ref_rep.json" ||
+    ! timeout 300 "$BIN/i2m" "$img" -o "$TMP/spec.vtu" --vtu-raw --threads 2 $opts --quiet --report "$TMP/spec_rep.json"; then
     echo "FAIL $name: the one-process run failed"; fail=1; return
   fi
   "$BIN/i2m-check" "$TMP/ref.vtu" --image "$img" --json >"$TMP/ref.json" || true
@@ -86,7 +86,7 @@ run_image() {
       [ $((np * t % 4)) = 0 ] && out="$TMP/m.pvtu" # (some runs write pieces)
       rm -f "$TMP"/m*.vtu "$TMP"/m.pvtu
       # shellcheck disable=SC2086
-      if ! timeout 300 $MPIRUN -np $np "$BIN/i2m" "$img" -o "$out" --threads $t $opts --quiet --report "$TMP/rep.json" \
+      if ! timeout 300 $MPIRUN -np $np "$BIN/i2m" "$img" -o "$out" --vtu-raw --threads $t $opts --quiet --report "$TMP/rep.json" \
         >"$TMP/log" 2>&1; then
         echo "FAIL $name, $np ranks x $t threads: i2m failed or timed out"; tail -5 "$TMP/log"; fail=1; continue
       fi
@@ -111,7 +111,7 @@ run_image "$DATA/vertebrae_vbseg.mha" "" none
 
 # the memory spread: the knee atlas (depth 3: a task's block is 27 of 512 subregions) at 2 ranks,
 # where no rank may ever hold more than 75% of the final tets
-if timeout 300 $MPIRUN -np 2 "$BIN/i2m" "$DATA/knee_atlas.nrrd" -o "$TMP/k.pvtu" --threads 1 --quiet --report "$TMP/k.json" \
+if timeout 300 $MPIRUN -np 2 "$BIN/i2m" "$DATA/knee_atlas.nrrd" -o "$TMP/k.pvtu" --vtu-raw --threads 1 --quiet --report "$TMP/k.json" \
   >"$TMP/log" 2>&1 && check_guarantees "$TMP/k.pvtu" "$DATA/knee_atlas.nrrd" "$TMP/k.json" --require-whole 10000 >"$TMP/check.txt" 2>&1; then
   if "$PY" - "$TMP/k.json" <<'EOF2'
 import json, sys

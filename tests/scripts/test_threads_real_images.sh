@@ -10,7 +10,7 @@ set -eu
 fail=0
 for img in ${I2M_IMAGES:-liver.inr.gz spine_verse009.nii.gz brain_kmeans_noisy.nii.gz}; do
   for T in 1 2 4; do
-    "$BIN/i2m" "$DATA/$img" -o "$TMP/m$T.vtu" --threads "$T" --report "$TMP/r$T.json" --quiet
+    "$BIN/i2m" "$DATA/$img" -o "$TMP/m$T.vtu" --vtu-raw --threads "$T" --report "$TMP/r$T.json" --quiet
     if ! check_guarantees "$TMP/m$T.vtu" "$DATA/$img" "$TMP/r$T.json" --json >"$TMP/c$T.json"; then
       echo "FAIL $img, $T threads:"; "$PY" -c "import json,sys; d=json.load(open(sys.argv[1])); print(d['violations'], d['validity']['errors'])" "$TMP/c$T.json"
       fail=1

@@ -20,7 +20,7 @@ runs=0
 mesh_and_check() {
   [ "$3" = deterministic ] && det=--deterministic || det=
   # shellcheck disable=SC2086 # (det: zero or one word)
-  if ! timeout 600 "$BIN/i2m" "$DATA/$1" -o "$TMP/w.vtu" --threads "$2" $det --report "$TMP/w$2$3.json" --quiet; then
+  if ! timeout 600 "$BIN/i2m" "$DATA/$1" -o "$TMP/w.vtu" --vtu-raw --threads "$2" $det --report "$TMP/w$2$3.json" --quiet; then
     echo "FAIL $1, $2 threads, $3: i2m failed"; fail=1; return
   fi
   runs=$((runs + 1))

@@ -81,7 +81,7 @@ def check_pair(mesh, ifaces, rep, tag, parallel=False):
     check(ok, f"{tag} interfaces: label_a < label_b on every triangle")
     if ok:
         check(set(a.tolist()) | set(b.tolist()) <= labels | {0}, f"{tag} interfaces: labels are materials or 0")
-        check(set(b.tolist()) == labels, f"{tag} interfaces: every material bounds some triangle")
+        check(labels <= (set(a.tolist()) | set(b.tolist())), f"{tag} interfaces: every material bounds some triangle")  # (on either side: a label inside others is never label_b)
 
 check_pair("l.vtu", "l.interfaces.vtu", "l.json", "l.vtu (zlib)")
 check_pair("r.vtu", "r.interfaces.vtu", "r.json", "r.vtu (raw)")

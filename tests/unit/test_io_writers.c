@@ -488,7 +488,7 @@ static void check_interfaces_file(const i2m_tetmesh_t *m, const char *path)
 {
   size_t len;
   char *buf = slurp(path, &len);
-  vtu_t x = {buf, buf + len, path, NULL, NULL, 4, 0, 0, 0, 0};
+  vtu_t x = {buf, buf + len, path, NULL, NULL, 4, 0, 0, 0, 0, NULL};
   vtu_da_t das[16];
   int nda = 0;
   const char *xml_end;

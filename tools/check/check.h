@@ -22,6 +22,24 @@
 #define CK_PI 3.14159265358979323846
 
 /* ---- the mesh as read from the file ---- */
+/* ---- progress lines of the long phases (progress.c) ---- */
+typedef struct {
+  i2m_progress_t p;
+  _Atomic int64_t done; /* work done so far, added by any thread */
+} ck_progress_t;
+/** The interval between two lines of one phase, in seconds (2 by default; 0: every update). */
+void ck_progress_set_interval(double seconds);
+/** Starts a phase of @p total units (0: unknown). */
+void ck_progress_begin(ck_progress_t *p, const char *phase, const char *unit, int64_t total);
+/** Adds @p n units done; cheap: call it per chunk of work, from any thread (thread 0 prints). */
+void ck_progress_add(ck_progress_t *p, int64_t n);
+/** Sets the units done (no line): for a phase whose count is known only at its end. */
+void ck_progress_set(ck_progress_t *p, int64_t done);
+/** Sets the units done and prints if the interval has passed: for a loop run by one thread. */
+void ck_progress_to(ck_progress_t *p, int64_t done);
+/** The closing line ("phase done: ...") when the phase lasted at least the interval. */
+void ck_progress_end(ck_progress_t *p);
+
 typedef struct ck_stitch ck_stitch_t;
 
 typedef struct {
@@ -47,6 +65,9 @@ typedef struct {
 /** Reads a mesh file (format by extension, .vtu .mesh .msh).  On error the message names the
  *  file and the problem; *m is left empty. */
 i2m_err_t ck_mesh_read(const char *path, ck_mesh_t *m);
+/** The same with a progress line of the bytes parsed (@p pr begun by the caller; its total is
+ *  set to the file's size; NULL: none). */
+i2m_err_t ck_mesh_read_progress(const char *path, ck_mesh_t *m, ck_progress_t *pr);
 void ck_mesh_free(ck_mesh_t *m);
 
 /* ---- a distributed mesh (.pvtu): pieces stitched by global id (pvtu.c) ---- */
@@ -124,6 +145,9 @@ typedef struct {
 } ck_topo_t;
 
 i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo);
+/** The same with a progress line (@p pr begun by the caller, its total set here: the tets
+ *  times the passes; NULL: none). */
+i2m_err_t ck_validity_progress(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo, ck_progress_t *pr);
 void ck_topo_free(ck_topo_t *t);
 /** The orientation of the file's interface triangles: "outward" (normals from the higher
  *  label to the lower, out of the domain on the outer boundary), "inward", "mixed" (both:
@@ -217,24 +241,6 @@ void ck_fidelity_whole(ck_fidelity_t *f, int64_t min_voxels);
  *  id; *ncomp number of components. */
 i2m_err_t ck_mesh_components(const ck_mesh_t *m, const ck_topo_t *topo, int64_t **comp,
                              int64_t *ncomp);
-
-/* ---- progress lines of the long phases (progress.c) ---- */
-typedef struct {
-  i2m_progress_t p;
-  _Atomic int64_t done; /* work done so far, added by any thread */
-} ck_progress_t;
-/** The interval between two lines of one phase, in seconds (2 by default; 0: every update). */
-void ck_progress_set_interval(double seconds);
-/** Starts a phase of @p total units (0: unknown). */
-void ck_progress_begin(ck_progress_t *p, const char *phase, const char *unit, int64_t total);
-/** Adds @p n units done; cheap: call it per chunk of work, from any thread (thread 0 prints). */
-void ck_progress_add(ck_progress_t *p, int64_t n);
-/** Sets the units done (no line): for a phase whose count is known only at its end. */
-void ck_progress_set(ck_progress_t *p, int64_t done);
-/** Sets the units done and prints if the interval has passed: for a loop run by one thread. */
-void ck_progress_to(ck_progress_t *p, int64_t done);
-/** The closing line ("phase done: ...") when the phase lasted at least the interval. */
-void ck_progress_end(ck_progress_t *p);
 
 /* ---- label colours for the pictures (palette.c) ---- */
 #define CK_NAME_MAX 64

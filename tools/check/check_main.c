@@ -217,15 +217,14 @@ static int run(const opts_t *o, ck_result_t *r)
   double t0 = i2m_wtime();
   int code = 2;
   memset(&topo, 0, sizeof topo);
-  ck_progress_t pr; /* the readers and validity have no progress of their own: a closing line
-                       when they took longer than the interval */
-  ck_progress_begin(&pr, "reading the mesh", "tets", 0);
-  if (ck_mesh_read(o->mesh, &m) != I2M_OK) {
+  ck_progress_t pr;
+  ck_progress_begin(&pr, "reading the mesh", "bytes", 0);
+  if (ck_mesh_read_progress(o->mesh, &m, &pr) != I2M_OK) {
     fprintf(stderr, "i2m-check: %s\n", i2m_error_message());
     return 2;
   }
   const i2m_image_read_opts_t ro = {.allow_external_data = o->allow_external_data != 0};
-  ck_progress_set(&pr, m.nt);
+  ck_progress_set(&pr, pr.p.total);
   ck_progress_end(&pr);
   ck_progress_begin(&pr, "reading the image", "voxels", 0);
   if (o->image && i2m_image_read_with(o->image, &ro, &img, NULL) != I2M_OK) {
@@ -244,10 +243,9 @@ static int run(const opts_t *o, ck_result_t *r)
   r->img = img;
   r->t_read = i2m_wtime() - t0;
   double t = i2m_wtime();
-  ck_progress_begin(&pr, "validity", "tets", 0);
-  if (ck_validity(&m, &r->validity, &topo) != I2M_OK) goto fail;
+  ck_progress_begin(&pr, "validity", "tet passes", 0);
+  if (ck_validity_progress(&m, &r->validity, &topo, &pr) != I2M_OK) goto fail;
   if (ck_stitch_check(&m, &topo, &r->validity) != I2M_OK) goto fail;
-  ck_progress_set(&pr, m.nt);
   ck_progress_end(&pr);
   r->t_validity = i2m_wtime() - t;
   if (!r->validity.bad_index && !r->validity.nonfinite && m.nt > 0) {

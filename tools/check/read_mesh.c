@@ -28,7 +28,16 @@ typedef struct {
   const char *p, *end; /* borrowed: cursor and end of the file buffer (NUL after end) */
   const char *path;    /* borrowed */
   int swap;            /* binary values are big-endian */
+  ck_progress_t *pr;   /* or NULL: bytes parsed, from base */
+  const char *base;
+  uint32_t tick;
 } rd_t;
+
+/* Every 65536 values read, the bytes parsed so far to the progress line (if any). */
+static inline void rd_tick(rd_t *r)
+{
+  if (r->pr && (++r->tick & 0xFFFF) == 0) ck_progress_to(r->pr, r->p - r->base);
+}
 
 void ck_mesh_free(ck_mesh_t *m)
 {
@@ -91,6 +100,7 @@ static int rd_i64(rd_t *r, int64_t *v)
   if (e == r->p || errno || e > r->end) return 0;
   r->p = e;
   *v = x;
+  rd_tick(r);
   return 1;
 }
 
@@ -103,6 +113,7 @@ static int rd_f64(rd_t *r, double *v)
   if (e == r->p || e > r->end) return 0;
   r->p = e;
   *v = x;
+  rd_tick(r);
   return 1;
 }
 
@@ -138,6 +149,7 @@ static int rd_bin(rd_t *r, void *dst, size_t n)
     }
   }
   r->p += n;
+  rd_tick(r);
   return 1;
 }
 
@@ -177,7 +189,7 @@ static i2m_err_t medit_comment(rd_t *r, medit_map_t *map)
   static const char key[] = "# i2m interface ";
   size_t kl = sizeof key - 1;
   if ((size_t)(eol - r->p) > kl && memcmp(r->p, key, kl) == 0) {
-    rd_t s = {r->p + kl, eol, r->path, 0};
+    rd_t s = {r->p + kl, eol, r->path, 0, NULL, NULL, 0};
     int64_t n, a, b;
     char eq[8], lab[16];
     if (rd_i64(&s, &n) && rd_word(&s, eq, sizeof eq) && strcmp(eq, "=") == 0 &&
@@ -364,6 +376,7 @@ typedef struct {
   int zlib;         /* compressor="vtkZLibDataCompressor" */
   int app_base64;   /* <AppendedData encoding="base64">: offsets count base64 characters */
   int64_t max_values; /* no array of this file can hold more values (from the file's size) */
+  ck_progress_t *pr;  /* or NULL: arrays read, as a share of the file's bytes */
 } vtu_t;
 
 /* deflate expands at most 1032 times: a compressed file holds at most that many bytes for
@@ -601,7 +614,7 @@ static i2m_err_t vtu_binary_source(const vtu_t *x, const vtu_da_t *da, unsigned 
 /* Reads count values of inline ascii array da into d (doubles) or v (int64). */
 static i2m_err_t vtu_ascii_array(const vtu_t *x, const vtu_da_t *da, int64_t count, double *d, int64_t *v)
 {
-  rd_t r = {da->tag_end + 1, x->end, x->path, 0};
+  rd_t r = {da->tag_end + 1, x->end, x->path, 0, NULL, NULL, 0};
   const char *stop = find_str(r.p, x->end, "</DataArray>");
   if (stop) r.end = stop;
   for (int64_t i = 0; i < count; i++) {
@@ -645,6 +658,10 @@ static i2m_err_t vtu_array(const vtu_t *x, const vtu_da_t *da, int64_t count, do
     if (d) d[i] = dd;
     if (v) v[i] = vv;
   }
+  /* the progress line: how far into the file this array lay (arrays are read out of order) */
+  const char *at = (const char *)data;
+  if (err == I2M_OK && x->pr && at >= x->buf && at < x->end && at - x->buf > atomic_load(&x->pr->done))
+    ck_progress_to(x->pr, at - x->buf);
   i2m_free(&tmp);
   i2m_free(&inflated);
   return err;
@@ -767,9 +784,9 @@ static i2m_err_t vtu_global_ids(const vtu_t *x, const vtu_da_t *das, int nda, in
   return I2M_OK;
 }
 
-static i2m_err_t read_vtu(const char *buf, size_t len, const char *path, ck_mesh_t *m)
+static i2m_err_t read_vtu(const char *buf, size_t len, const char *path, ck_mesh_t *m, ck_progress_t *pr)
 {
-  vtu_t x = {buf, buf + len, path, NULL, NULL, 4, 0, 0, 0, 0};
+  vtu_t x = {buf, buf + len, path, NULL, NULL, 4, 0, 0, 0, 0, pr};
   vtu_da_t das[64];
   int nda = 0;
   const char *xml_end = NULL;
@@ -1332,7 +1349,9 @@ static int ends_with(const char *s, const char *suf)
   return a >= b && strcasecmp(s + a - b, suf) == 0;
 }
 
-i2m_err_t ck_mesh_read(const char *path, ck_mesh_t *m)
+i2m_err_t ck_mesh_read(const char *path, ck_mesh_t *m) { return ck_mesh_read_progress(path, m, NULL); }
+
+i2m_err_t ck_mesh_read_progress(const char *path, ck_mesh_t *m, ck_progress_t *pr)
 {
   char *buf = NULL;
   size_t len = 0;
@@ -1343,11 +1362,12 @@ i2m_err_t ck_mesh_read(const char *path, ck_mesh_t *m)
             path);
   I2M_CALL(read_file(path, &buf, &len));
   m->path = path;
-  rd_t r = {buf, buf + len, path, 0};
+  rd_t r = {buf, buf + len, path, 0, pr, buf, 0};
+  if (pr) pr->p.total = (int64_t)len;
   i2m_err_t err;
   if (fmt == 1) {
     strcpy(m->format, "vtu");
-    err = read_vtu(buf, len, path, m);
+    err = read_vtu(buf, len, path, m, pr);
   } else if (fmt == 2) {
     strcpy(m->format, "medit");
     err = read_medit(&r, m);

@@ -354,9 +354,20 @@ static void geometry(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo, int8
   }
 }
 
-i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo)
+i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo) { return ck_validity_progress(m, v, topo, NULL); }
+
+#define VALIDITY_PASSES 7 /* (the progress line's passes over the tets) */
+
+/* Pass k of VALIDITY_PASSES done. */
+static void passed(ck_progress_t *pr, const ck_mesh_t *m, int k)
+{
+  if (pr) ck_progress_to(pr, k * m->nt);
+}
+
+i2m_err_t ck_validity_progress(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo, ck_progress_t *pr)
 {
   int8_t *sgn = NULL;
+  if (pr) pr->p.total = VALIDITY_PASSES * m->nt;
   i2m_err_t err = I2M_OK;
   memset(v, 0, sizeof *v);
   memset(topo, 0, sizeof *topo);
@@ -386,14 +397,21 @@ i2m_err_t ck_validity(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo)
   }
   I2M_CALL(i2m_malloc((size_t)m->nt, sizeof *sgn, &sgn));
   I2M_CALL_GOTO(err, out, i2m_malloc((size_t)m->nt, sizeof *topo->vol, &topo->vol));
+  passed(pr, m, 1);
   geometry(m, v, topo, sgn);
+  passed(pr, m, 2);
   I2M_CALL_GOTO(err, out, match_faces(m, sgn, v, topo));
+  passed(pr, m, 3);
   I2M_CALL_GOTO(err, out, boundary_edges(m, topo, v));
+  passed(pr, m, 4);
   I2M_CALL_GOTO(err, out, vertices(m, v));
+  passed(pr, m, 5);
   I2M_CALL_GOTO(err, out, derive_interfaces(m, topo));
   v->interface_triangles = topo->iface.n;
   I2M_CALL_GOTO(err, out, count_pairs(&topo->iface, &v->interface_pairs));
+  passed(pr, m, 6);
   if (m->has_tri && !v->tri_bad_index) I2M_CALL_GOTO(err, out, compare_file(m, topo, v));
+  passed(pr, m, 7);
   v->file_flipped = v->file_outward < v->file_inward ? v->file_outward : v->file_inward;
   if (v->inverted) ck_validity_add_error(v, "inverted");
   if (v->degenerate) ck_validity_add_error(v, "degenerate");

@@ -5,6 +5,9 @@
 
 #include <math.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "i2m/pipeline.h"
 #include "i2m/threads.h"
@@ -195,6 +198,9 @@ int i2m_mesh_labels(const void *labels, i2m_label_type_t type, const int64_t dim
   const i2m_options_t *o = opts ? opts : &defaults;
   const i2m_log_level_t level = i2m_log_get_level();
   i2m_log_set_level(o->verbose >= 2 ? I2M_LOG_DEBUG : o->verbose == 1 ? I2M_LOG_INFO : I2M_LOG_WARN);
+#ifdef _OPENMP
+  const int caller_threads = omp_get_max_threads(); /* (the cap below is the caller's setting too: restored) */
+#endif
   if (o->threads > 0) i2m_threads_limit(o->threads);
   i2m_image_t *img = NULL;
   i2m_label_size_t *sizes = NULL;
@@ -207,6 +213,9 @@ int i2m_mesh_labels(const void *labels, i2m_label_type_t type, const int64_t dim
   i2m_free(&sizes);
   i2m_free(&regions);
   i2m_log_set_level(level);
+#ifdef _OPENMP
+  omp_set_num_threads(caller_threads);
+#endif
   return err == I2M_OK ? 0 : err == I2M_ERR_ARG ? 2 : 1;
 }
 

@@ -69,6 +69,8 @@ typedef struct i2m_dt {
   uint32_t *free_v;         /**< owned: stack of dead vertex slots */
   uint32_t nfree_v, cap_free_v;
   double box_lo[3], box_hi[3]; /**< the virtual box corners' extent */
+  double shift[3];          /**< the frame: world = coordinates + shift (i2m_dt_set_shift) */
+  bool shifted;             /**< shift is not zero: every point inserted is snapped */
 } i2m_dt_t;
 
 /** Result of an insertion or removal attempt. */
@@ -169,6 +171,26 @@ i2m_err_t i2m_dt_take_vertex(i2m_dt_t *dt, uint32_t *v);
 i2m_err_t i2m_dt_give_tet(i2m_dt_t *dt, uint32_t t);
 /** Kills vertex v and files its slot in the free list.  All contexts idle. */
 i2m_err_t i2m_dt_give_vertex(i2m_dt_t *dt, uint32_t v);
+
+/** Sets the frame's shift s (world = coordinates + s; before any insertion).  From then on
+ *  every point inserted or located is first snapped to q = fl(fl(p + s) - s), so that q + s is
+ *  a double: adding s back is exact and the world mesh is this one translated, with the same
+ *  orientations.  The snap moves a point by at most half an ulp of the world coordinate; a
+ *  point on its seed's sphere may then fall outside it (I2M_DT_NOT_IN_CONFLICT, as for any
+ *  point on the sphere).  Each |s[a]| must be at least twice every |coordinate| (Sterbenz:
+ *  the subtraction is then exact). */
+void i2m_dt_set_shift(i2m_dt_t *dt, const double s[3]);
+
+/** The point the triangulation takes for p: p itself, or its snap into q (see above). */
+static inline const double *i2m_dt_snap(const i2m_dt_t *dt, const double p[3], double q[3])
+{
+  if (!dt->shifted) return p;
+  for (int a = 0; a < 3; a++) {
+    const double w = p[a] + dt->shift[a]; /* (rounded: the world coordinate) */
+    q[a] = w - dt->shift[a];              /* (exact) */
+  }
+  return q;
+}
 
 /** Initialises a context for @p dt; owner >= 1 distinguishes threads. */
 i2m_err_t i2m_dt_ctx_init(i2m_dt_ctx_t *ctx, i2m_dt_t *dt, uint32_t owner, bool locking);

@@ -7,7 +7,9 @@
  * The "grid frame" is g = diag(spacing) * (i,j,k), an axis-aligned frame in mm with voxel
  * (0,0,0)'s centre at the origin; i2m_image_grid_to_world() maps it to the world (a rigid
  * motion when dir is orthonormal, which the readers ensure).  The mesher works in world
- * coordinates, so the coordinates it writes are exactly those its predicates decided on. */
+ * coordinates, or, for an image far from the world's origin, in the world shifted to the
+ * image's corner (i2m_image_mesh_shift) with its points snapped so that the shift back is
+ * exact: either way the coordinates it writes are exactly those its predicates decided on. */
 #ifndef I2M_IMAGE_H
 #define I2M_IMAGE_H
 
@@ -199,6 +201,13 @@ void i2m_image_world_bounds(const i2m_image_t *img, double lo[3], double hi[3]);
 /** World bounding box of the voxels first..last (inclusive, outer voxel faces). */
 void i2m_image_world_bounds_of(const i2m_image_t *img, const int64_t first[3], const int64_t last[3], double lo[3],
                                double hi[3]);
+/** The shift of the frame the image is meshed in (world = mesh + s, i2m_refine_params_t):
+ *  per axis, the origin's coordinate when it lies at least 8 of the image's extents from the
+ *  world's origin (so the mesh's coordinates are small and its points can be snapped for an
+ *  exact shift back), else 0: the world's coordinates then lose at most 4 bits against the
+ *  image's own corner, and a mesh near the origin is not rounded at all. */
+void i2m_image_mesh_shift(const i2m_image_t *img, double s[3]);
+
 /** Determinant sign of dir (+1 or -1): -1 means the grid->world map flips orientation, so
  *  writers swap two vertices of every tetrahedron to keep positive volumes. */
 int i2m_image_handedness(const i2m_image_t *img);

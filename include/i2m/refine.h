@@ -47,8 +47,12 @@ typedef struct {
   int nlabel_sizes;
   const i2m_label_size_t *label_sizes; /**< borrowed */
   int nregions;
-  const i2m_region_t *regions;         /**< borrowed */
+  const i2m_region_t *regions;         /**< borrowed; world coordinates */
   uint64_t seed;
+  /** The mesh frame: the image handed to refinement has its origin moved by -shift, the mesh
+   *  is made there (its points snapped, i2m_dt_set_shift) and extracted in the world, shifted
+   *  back exactly.  Zero by default (i2m_image_mesh_shift chooses it). */
+  double shift[3];
 } i2m_refine_params_t;
 
 /** Default parameters (delta chosen by i2m_refine_default_delta at setup). */

@@ -94,7 +94,7 @@ static void checksum(i2m_pipeline_t *p)
   p->working_tets = sums[1];
 }
 
-i2m_err_t i2m_pipeline_mesh(i2m_pipeline_t *p)
+static i2m_err_t mesh_in_frame(i2m_pipeline_t *p, const i2m_refine_params_t *params)
 {
   i2m_pipeline_phase_begin(p, "distance transform");
   AGREE(p, i2m_edt_create(p->img, &p->edt));
@@ -102,7 +102,7 @@ i2m_err_t i2m_pipeline_mesh(i2m_pipeline_t *p)
   i2m_pipeline_phase_end(p, I2M_PHASE_EDT);
 
   i2m_pipeline_phase_begin(p, "refinement");
-  AGREE(p, i2m_refine_create(p->img, p->edt, &p->opt.params, &p->ref));
+  AGREE(p, i2m_refine_create(p->img, p->edt, params, &p->ref));
   I2M_CALL(refine(p));
   if (p->opt.sliver_angle > 0) {
     i2m_pipeline_phase_end(p, I2M_PHASE_REFINE);
@@ -127,6 +127,21 @@ i2m_err_t i2m_pipeline_mesh(i2m_pipeline_t *p)
             "%s: the mesh is empty: the labelled region is smaller than what delta = %g mm can resolve; try a smaller --delta",
             p->img->path && *p->img->path ? p->img->path : "the image", i2m_refine_params(p->ref)->delta);
   return I2M_OK;
+}
+
+/* The image is meshed in a frame near its own corner (i2m_image_mesh_shift): its origin moves
+ * there for the steps, and back; extraction returns world coordinates. */
+i2m_err_t i2m_pipeline_mesh(i2m_pipeline_t *p)
+{
+  i2m_refine_params_t params = p->opt.params;
+  const double origin[3] = {p->img->origin[0], p->img->origin[1], p->img->origin[2]};
+  i2m_image_mesh_shift(p->img, params.shift);
+  if (params.shift[0] != 0 || params.shift[1] != 0 || params.shift[2] != 0)
+    i2m_debug("i2m: meshed in a frame shifted by (%.17g, %.17g, %.17g) mm", params.shift[0], params.shift[1], params.shift[2]);
+  for (int a = 0; a < 3; a++) p->img->origin[a] -= params.shift[a];
+  i2m_err_t err = mesh_in_frame(p, &params);
+  memcpy(p->img->origin, origin, sizeof origin);
+  return err;
 }
 
 void i2m_pipeline_free(i2m_pipeline_t *p)

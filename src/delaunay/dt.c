@@ -122,6 +122,12 @@ fail:
   return err;
 }
 
+void i2m_dt_set_shift(i2m_dt_t *dt, const double s[3])
+{
+  dt->shifted = s[0] != 0.0 || s[1] != 0.0 || s[2] != 0.0;
+  for (int a = 0; a < 3; a++) dt->shift[a] = dt->shifted ? s[a] : 0.0;
+}
+
 void i2m_dt_destroy(i2m_dt_t **dtp)
 {
   if (!dtp || !*dtp) return;

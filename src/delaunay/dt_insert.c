@@ -615,6 +615,8 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
 {
   I2M_CHECK_ABORT(ctx->locking || ctx->nheld == 0, "i2m_dt_insert: the previous operation's vertices are still held");
   ctx->ncav = ctx->nbnd = ctx->nnew = 0;
+  double snapped[3];
+  p = i2m_dt_snap(ctx->dt, p, snapped);
   if (ctx->zone && !i2m_box_holds(ctx->zone, p)) {
     ctx->conflict_owner = 0;
     return cavity_abandon(ctx, I2M_DT_ROLLBACK);
@@ -721,6 +723,8 @@ uint32_t i2m_dt_locate(i2m_dt_ctx_t *ctx, const double p[3], uint32_t start)
 {
   const i2m_dt_t *dt = ctx->dt;
   uint32_t t = start, prev = I2M_DT_NONE;
+  double snapped[3];
+  p = i2m_dt_snap(dt, p, snapped);
   uint64_t rng = walk_seed(p);
   for (;;) {
     const uint32_t *v = dt->tv + 4 * (size_t)t, *tn = dt->tn + 4 * (size_t)t;

@@ -195,6 +195,17 @@ void i2m_image_world_bounds_of(const i2m_image_t *img, const int64_t first[3], c
   }
 }
 
+void i2m_image_mesh_shift(const i2m_image_t *img, double s[3])
+{
+  /* Mesh coordinates lie in the virtual box (the image block grown by its extent e on every
+   * side) minus the origin, so within 2e of 0: |s| >= 8e leaves the factor of 2 that makes
+   * fl(fl(p + s) - s) exact, with room to spare. */
+  double lo[3], hi[3], e = 0;
+  i2m_image_world_bounds(img, lo, hi);
+  for (int a = 0; a < 3; a++) e = fmax(e, hi[a] - lo[a]);
+  for (int a = 0; a < 3; a++) s[a] = fabs(img->origin[a]) >= 8.0 * e ? img->origin[a] : 0.0;
+}
+
 void i2m_image_world_bounds(const i2m_image_t *img, double lo[3], double hi[3])
 {
   const int64_t first[3] = {0, 0, 0}, last[3] = {img->n[0] - 1, img->n[1] - 1, img->n[2] - 1};

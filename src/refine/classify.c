@@ -51,7 +51,7 @@ static void local_bounds(const i2m_refine_t *r, const double c[3], int lab, doub
   double s = r->p.size, q = r->p.ratio;
   if (r->label_size && r->label_size[lab] < s) s = r->label_size[lab];
   if (r->p.nregions) {
-    const double *w = c;
+    const double w[3] = {c[0] + r->p.shift[0], c[1] + r->p.shift[1], c[2] + r->p.shift[2]}; /* (regions: world) */
     for (int k = 0; k < r->p.nregions; k++) {
       const i2m_region_t *g = &r->p.regions[k];
       if (w[0] < g->lo[0] || w[0] > g->hi[0] || w[1] < g->lo[1] || w[1] > g->hi[1] || w[2] < g->lo[2] ||

@@ -133,7 +133,9 @@ i2m_err_t i2m_refine_extract(const i2m_refine_t *r, i2m_tetmesh_t **out)
   I2M_OMP(omp parallel for schedule(static))
   for (int64_t v = 0; v < (int64_t)nvs; v++) {
     if (vmap[v] < 0) continue;
-    memcpy(m->xyz + 3 * (size_t)vmap[v], i2m_dt_xyz(dt, (uint32_t)v), 3 * sizeof(double));
+    const double *x = i2m_dt_xyz(dt, (uint32_t)v);
+    double *w = m->xyz + 3 * (size_t)vmap[v];
+    for (int a = 0; a < 3; a++) w[a] = dt->shifted ? x[a] + dt->shift[a] : x[a]; /* (exact: the points were snapped) */
     if (m->gid) m->gid[vmap[v]] = i2m_dt_gid(dt, (uint32_t)v);
   }
   I2M_OMP(omp parallel for schedule(dynamic, 4))

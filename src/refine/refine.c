@@ -44,7 +44,11 @@ i2m_err_t i2m_refine_params_check_geometry(const i2m_refine_params_t *p, const i
   I2M_CHECK(p->size > 0, I2M_ERR_ARG, "--size must be a positive length in mm (got %g)", p->size);
   double lo[3], hi[3], extent = 0;
   i2m_image_world_bounds(img, lo, hi);
-  for (int a = 0; a < 3; a++) extent = fmax(extent, hi[a] - lo[a]);
+  for (int a = 0; a < 3; a++) {
+    extent = fmax(extent, hi[a] - lo[a]);
+    lo[a] += p->shift[a]; /* (the image may be in the mesh frame; regions are in the world) */
+    hi[a] += p->shift[a];
+  }
   I2M_CHECK(isnan(p->delta) || p->delta < extent, I2M_ERR_ARG,
             "--delta %g mm is not below the image's largest extent (%g mm): nothing could be resolved", p->delta,
             extent);
@@ -124,6 +128,7 @@ i2m_err_t i2m_refine_create(const i2m_image_t *img, const i2m_edt_t *edt, const 
     hi[a] += ext;
   }
   I2M_CALL_GOTO(err, fail, i2m_dt_create(lo, hi, 1 << 12, sizeof(tet_info_t), &r->dt));
+  i2m_dt_set_shift(r->dt, params->shift);
   /* the grids cover the labelled block (the transform's box K), where surface points and
    * their neighbours lie; anything outside falls into the border cells */
   double ilo[3], ihi[3];

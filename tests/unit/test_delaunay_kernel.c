@@ -364,6 +364,54 @@ static void test_large_star_remove_insert(void)
 }
 
 /* The empty box: 8 cospherical corners give 5 or 6 positive tets filling the box. */
+/* The shifted frame: with a shift far larger than the coordinates, every point inserted is
+ * snapped (moved by at most half an ulp of its world coordinate) so that coordinate + shift
+ * is exact; the triangulation is valid and, translated to the world, every tet keeps its
+ * positive orientation (exact predicate on the world coordinates). */
+static void test_shifted_frame(void)
+{
+  const size_t n = N_RANDOM / 10;
+  const double s[3] = {1e7, -3.3e6, 123456789.123};
+  double *xyz = malloc(3 * n * sizeof *xyz), *world = NULL;
+  uint32_t *vid = malloc(n * sizeof *vid);
+  for (size_t i = 0; i < 3 * n; i++) xyz[i] = urand();
+  i2m_dt_t *dt = make_dt(-3, 4, (uint32_t)n);
+  i2m_dt_set_shift(dt, s);
+  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, 1, vid, NULL) == I2M_OK);
+  assert_valid(dt);
+  int64_t moved = 0;
+  for (size_t i = 0; i < n; i++) {
+    CU_ASSERT_FATAL(vid[i] != I2M_DT_NONE);
+    const double *x = i2m_dt_xyz(dt, vid[i]);
+    for (int a = 0; a < 3; a++) {
+      CU_ASSERT((x[a] + s[a]) - s[a] == x[a]); /* the shift back is exact */
+      CU_ASSERT(fabs(x[a] - xyz[3 * i + a]) <= 0.5 * (nextafter(fabs(s[a]) + 4, INFINITY) - (fabs(s[a]) + 4)));
+      moved += x[a] != xyz[3 * i + a];
+    }
+  }
+  CU_ASSERT(moved > (int64_t)n); /* (most coordinates are not on the world's grid) */
+  uint32_t nv = i2m_dt_nverts_slots(dt), nt = i2m_dt_ntets_slots(dt);
+  world = malloc(3 * (size_t)nv * sizeof *world);
+  for (uint32_t v = 0; v < nv; v++)
+    for (int a = 0; a < 3; a++) world[3 * v + a] = i2m_dt_xyz(dt, v)[a] + s[a];
+  int64_t checked = 0, inverted = 0;
+  for (uint32_t t = 0; t < nt; t++) {
+    if (!i2m_dt_alive(dt, t)) continue;
+    const uint32_t *v = dt->tv + 4 * (size_t)t;
+    if (dt->vkind[v[0]] == I2M_VK_BOX || dt->vkind[v[1]] == I2M_VK_BOX || dt->vkind[v[2]] == I2M_VK_BOX ||
+        dt->vkind[v[3]] == I2M_VK_BOX)
+      continue; /* (the box corners were not inserted: not snapped) */
+    checked++;
+    inverted += i2m_orient3d(world + 3 * v[0], world + 3 * v[1], world + 3 * v[2], world + 3 * v[3]) <= 0;
+  }
+  CU_ASSERT(checked > 6 * (int64_t)n);
+  CU_ASSERT_EQUAL(inverted, 0);
+  i2m_dt_destroy(&dt);
+  free(world);
+  free(vid);
+  free(xyz);
+}
+
 static void test_box(void)
 {
   i2m_dt_t *dt = make_dt(-1, 2, 0);
@@ -388,6 +436,7 @@ static const test_case_t cases[] = {
     {"lattice (cospherical): order-independent", test_lattice_order_independent},
     {"points on a sphere", test_sphere_points},
     {"1e-12-perturbed grid", test_perturbed_grid},
+    {"shifted frame: points snapped, shift back exact", test_shifted_frame},
     {"remove random subset of random points", test_remove_random},
     {"remove random subset of a lattice", test_remove_lattice},
     {"remove every point", test_remove_everything},

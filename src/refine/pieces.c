@@ -335,12 +335,21 @@ i2m_err_t pieces_build(i2m_refine_t *r, pieces_t *P)
   I2M_CALL_GOTO(err, fail, i2m_malloc(n ? n : 1, sizeof *P->idx, &P->idx));
   i2m_progress_t pg; /* (three passes over the slots: most of the time on large meshes) */
   i2m_progress_begin_total(&pg, "mesh pieces (components per label)", "tet slots", 3 * (int64_t)n);
+  double t[6];
+  t[0] = i2m_wtime();
   find_parts(dt, P->par, &pg);
+  t[1] = i2m_wtime();
   I2M_CALL_GOTO(err, fail, list_parts(r, P));
+  t[2] = i2m_wtime();
   I2M_CALL_GOTO(err, fail, describe_parts(r, P, &pg));
+  t[3] = i2m_wtime();
   I2M_CALL_GOTO(err, fail, describe_areas(r, P));
+  t[4] = i2m_wtime();
   I2M_CALL_GOTO(err, fail, describe_faces(r, P));
+  t[5] = i2m_wtime();
   i2m_progress_end(&pg, 3 * (int64_t)n);
+  i2m_debug("pieces: %u tet slots, %zu parts; find %.2f s, list %.2f s, describe %.2f s, areas %.2f s, faces %.2f s", n,
+            P->nparts, t[1] - t[0], t[2] - t[1], t[3] - t[2], t[4] - t[3], t[5] - t[4]);
   return I2M_OK;
 fail:
   pieces_free(P);

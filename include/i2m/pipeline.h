@@ -40,6 +40,7 @@ typedef struct {
   i2m_threads_report_t team;
   i2m_dist_report_t dist;
   i2m_sliver_stats_t slivers;
+  i2m_dihedral_bands_t bands_before; /**< with a sliver pass: the bands before it (summed over the ranks) */
   uint64_t checksum;     /**< with opt.checksum: of the whole triangulation (summed over ranks) */
   int64_t working_tets;
   double phase_seconds[I2M_NPHASES];

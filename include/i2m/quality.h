@@ -18,8 +18,26 @@ typedef struct {
   double voxel_volume;  /**< voxel count x voxel volume, mm^3 */
 } i2m_label_figures_t;
 
+/** Tets by band of dihedral angle: smallest angle below 5, 10, 15, 20 degrees; largest above
+ *  160, 170 degrees (the bands of the finite-element quality goal: 15 and 160). */
+#define I2M_DIHEDRAL_NLOW 4
+#define I2M_DIHEDRAL_NHIGH 2
+typedef struct {
+  int64_t below[I2M_DIHEDRAL_NLOW];
+  int64_t above[I2M_DIHEDRAL_NHIGH];
+} i2m_dihedral_bands_t;
+
+/** The bands' bounds in degrees (k-th lower band, k-th upper band). */
+double i2m_dihedral_low_degrees(int k);
+double i2m_dihedral_high_degrees(int k);
+/** Counts one tet into the bands from its six dihedral cosines (i2m_tet_dihedral_cosines). */
+void i2m_dihedral_bands_add(i2m_dihedral_bands_t *b, const double cs[6]);
+/** a += b. */
+void i2m_dihedral_bands_merge(i2m_dihedral_bands_t *a, const i2m_dihedral_bands_t *b);
+
 typedef struct {
   double min_dihedral, max_dihedral;  /**< degrees */
+  i2m_dihedral_bands_t bands;         /**< tets per dihedral band */
   int64_t dihedral_hist[180];         /**< 1-degree bins */
   double max_radius_edge;
   int64_t n_ratio_above;              /**< tets above the ratio bound */

@@ -19,6 +19,7 @@
 #include "i2m/dt.h"
 #include "i2m/edt.h"
 #include "i2m/image.h"
+#include "i2m/quality.h"
 #include "i2m/tetmesh.h"
 
 #ifdef __cplusplus
@@ -133,6 +134,10 @@ typedef struct {
   int64_t tried, kept;                   /**< vertex moves tried and kept */
   double seconds;
 } i2m_sliver_stats_t;
+
+/** The dihedral bands of the output tets (kept: alive, labelled) of this process's
+ *  triangulation, before any extraction (OpenMP threads): the figures before the sliver pass. */
+void i2m_refine_dihedral_bands(const i2m_refine_t *r, i2m_dihedral_bands_t *b);
 
 /** Sliver perturbation, after refinement and before extraction (no other work on the mesh):
  *  moves the vertices of the output tets whose smallest dihedral angle is below @p bound

@@ -46,6 +46,7 @@ typedef struct {
   int64_t whole_min_voxels;         /**< the census's large components: at least this many voxels */
   double sliver_angle;               /**< the perturbation's bound (0: it did not run) */
   i2m_sliver_stats_t slivers;        /**< what it did */
+  i2m_dihedral_bands_t bands_before; /**< the dihedral bands before it (when it ran) */
 } i2m_report_t;
 
 /** The mesh volume of a label may differ from its voxel volume by this fraction before a

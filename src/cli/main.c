@@ -116,6 +116,7 @@ static i2m_err_t report(run_t *r)
   rep->working_tets = pipe->working_tets;
   rep->sliver_angle = r->opt.sliver_angle;
   rep->slivers = pipe->slivers;
+  rep->bands_before = pipe->bands_before;
   if (r->par->rank == 0) { /* (on stderr even with --quiet, as warn_split_components) */
     const i2m_write_opts_t wo = write_opts(r); /* (the tissue names the writers get) */
     i2m_report_warn_labels(stderr, &r->quality, r->img, wo.names, I2M_VOLUME_WARN_FRACTION);

@@ -255,6 +255,8 @@ void i2m_dist_reduce_quality(const i2m_par_t *par, i2m_quality_t *q)
   MPI_Allreduce(MPI_IN_PLACE, &q->min_dihedral, 1, MPI_DOUBLE, MPI_MIN, par->comm);
   MPI_Allreduce(MPI_IN_PLACE, &q->max_dihedral, 1, MPI_DOUBLE, MPI_MAX, par->comm);
   MPI_Allreduce(MPI_IN_PLACE, q->dihedral_hist, 180, MPI_INT64_T, MPI_SUM, par->comm);
+  MPI_Allreduce(MPI_IN_PLACE, q->bands.below, I2M_DIHEDRAL_NLOW, MPI_INT64_T, MPI_SUM, par->comm);
+  MPI_Allreduce(MPI_IN_PLACE, q->bands.above, I2M_DIHEDRAL_NHIGH, MPI_INT64_T, MPI_SUM, par->comm);
   MPI_Allreduce(MPI_IN_PLACE, &q->max_radius_edge, 1, MPI_DOUBLE, MPI_MAX, par->comm);
   MPI_Allreduce(MPI_IN_PLACE, &q->n_ratio_above, 1, MPI_INT64_T, MPI_SUM, par->comm);
   MPI_Allreduce(MPI_IN_PLACE, &q->min_facet_angle, 1, MPI_DOUBLE, MPI_MIN, par->comm);

@@ -28,6 +28,28 @@ static double tets_per_second(const i2m_report_t *r)
   return t > 0 ? (double)r->nt / t : 0;
 }
 
+/* "below 5/10/15/20 deg: a/b/c/d, above 160/170 deg: e/f" */
+static void text_bands(FILE *f, const i2m_dihedral_bands_t *b)
+{
+  fprintf(f, "tets with a dihedral angle below ");
+  for (int k = 0; k < I2M_DIHEDRAL_NLOW; k++) fprintf(f, "%s%g", k ? "/" : "", i2m_dihedral_low_degrees(k));
+  fprintf(f, " deg: ");
+  for (int k = 0; k < I2M_DIHEDRAL_NLOW; k++) fprintf(f, "%s%lld", k ? "/" : "", (long long)b->below[k]);
+  fprintf(f, ", above ");
+  for (int k = 0; k < I2M_DIHEDRAL_NHIGH; k++) fprintf(f, "%s%g", k ? "/" : "", i2m_dihedral_high_degrees(k));
+  fprintf(f, " deg: ");
+  for (int k = 0; k < I2M_DIHEDRAL_NHIGH; k++) fprintf(f, "%s%lld", k ? "/" : "", (long long)b->above[k]);
+}
+
+/* {"below_5": a, ..., "above_170": f} */
+static void json_bands(FILE *f, const i2m_dihedral_bands_t *b)
+{
+  fprintf(f, "{");
+  for (int k = 0; k < I2M_DIHEDRAL_NLOW; k++) fprintf(f, "\"below_%g\": %lld, ", i2m_dihedral_low_degrees(k), (long long)b->below[k]);
+  for (int k = 0; k < I2M_DIHEDRAL_NHIGH; k++)
+    fprintf(f, "\"above_%g\": %lld%s", i2m_dihedral_high_degrees(k), (long long)b->above[k], k + 1 < I2M_DIHEDRAL_NHIGH ? ", " : "}");
+}
+
 void i2m_report_print(FILE *f, const i2m_report_t *r)
 {
   const i2m_quality_t *q = r->quality;
@@ -91,6 +113,14 @@ void i2m_report_print(FILE *f, const i2m_report_t *r)
             q->min_facet_angle);
     fprintf(f, "               %lld interface triangles below %.3g deg (%lld of them at junctions of 3+ labels)\n",
             (long long)q->n_facet_below, q->facet_bound, (long long)q->n_facet_below_junction);
+    fprintf(f, "               ");
+    text_bands(f, &q->bands);
+    if (r->sliver_angle > 0) {
+      fprintf(f, "\n               (before the sliver pass: ");
+      text_bands(f, &r->bands_before);
+      fprintf(f, ")");
+    }
+    fprintf(f, "\n");
   }
 }
 
@@ -158,7 +188,9 @@ static void json_quality(FILE *f, const i2m_report_t *r)
   fprintf(f, "\"tets_above_ratio\": %lld, ", (long long)q->n_ratio_above);
   i2m_json_member(f, "min_facet_angle", q->min_facet_angle, false);
   fprintf(f, "\"facets_below_angle\": %lld, ", (long long)q->n_facet_below);
-  fprintf(f, "\"facets_below_angle_at_junctions\": %lld, \"dihedral_histogram\": [", (long long)q->n_facet_below_junction);
+  fprintf(f, "\"facets_below_angle_at_junctions\": %lld, \"dihedral_bands\": ", (long long)q->n_facet_below_junction);
+  json_bands(f, &q->bands);
+  fprintf(f, ", \"dihedral_histogram\": [");
   for (int k = 0; k < 180; k++) fprintf(f, "%s%lld", k ? ", " : "", (long long)q->dihedral_hist[k]);
   fprintf(f, "]},\n  \"labels\": [");
   for (int l = 0; l < q->nlabels; l++) {
@@ -280,7 +312,9 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
             (long long)v->slivers_before, (long long)v->slivers_after);
     i2m_json_member(f, "min_dihedral_before", v->min_before, false);
     i2m_json_member(f, "min_dihedral_after", v->min_after, false);
-    fprintf(f, "\"moves_tried\": %lld, \"moves_kept\": %lld},\n", (long long)v->tried, (long long)v->kept);
+    fprintf(f, "\"moves_tried\": %lld, \"moves_kept\": %lld, \"dihedral_bands_before\": ", (long long)v->tried, (long long)v->kept);
+    json_bands(f, &r->bands_before);
+    fprintf(f, "},\n");
   }
   fprintf(f, "  \"time_seconds\": {");
   for (int p = 0; p < I2M_NPHASES; p++) fprintf(f, "\"%s\": %.4f, ", i2m_phase_name(p), r->phase_seconds[p]);

@@ -37,6 +37,34 @@ static int angle_bin(const angle_bins_t *t, double c)
   return b + (b < 179 && c <= t->cos_deg[b + 1]);
 }
 
+/* ---- dihedral bands ---- */
+
+static const double LOW_DEG[I2M_DIHEDRAL_NLOW] = {5, 10, 15, 20}, HIGH_DEG[I2M_DIHEDRAL_NHIGH] = {160, 170};
+/* their cosines (a smaller angle has a larger cosine) */
+static const double LOW_COS[I2M_DIHEDRAL_NLOW] = {0.99619469809174553, 0.98480775301220806, 0.96592582628906829,
+                                                  0.93969262078590838};
+static const double HIGH_COS[I2M_DIHEDRAL_NHIGH] = {-0.93969262078590838, -0.98480775301220806};
+
+double i2m_dihedral_low_degrees(int k) { return LOW_DEG[k]; }
+double i2m_dihedral_high_degrees(int k) { return HIGH_DEG[k]; }
+
+void i2m_dihedral_bands_add(i2m_dihedral_bands_t *b, const double cs[6])
+{
+  double maxc = cs[0], minc = cs[0];
+  for (int k = 1; k < 6; k++) {
+    maxc = cs[k] > maxc ? cs[k] : maxc;
+    minc = cs[k] < minc ? cs[k] : minc;
+  }
+  for (int k = 0; k < I2M_DIHEDRAL_NLOW; k++) b->below[k] += !(maxc <= LOW_COS[k]); /* (NaN: counted as bad) */
+  for (int k = 0; k < I2M_DIHEDRAL_NHIGH; k++) b->above[k] += !(minc >= HIGH_COS[k]);
+}
+
+void i2m_dihedral_bands_merge(i2m_dihedral_bands_t *a, const i2m_dihedral_bands_t *b)
+{
+  for (int k = 0; k < I2M_DIHEDRAL_NLOW; k++) a->below[k] += b->below[k];
+  for (int k = 0; k < I2M_DIHEDRAL_NHIGH; k++) a->above[k] += b->above[k];
+}
+
 /* Dihedral angles and radius-edge ratios of every tet (OpenMP-parallel: per-thread
  * extremes and histograms, merged; angles handled by their cosines). */
 static i2m_err_t tet_figures(const i2m_tetmesh_t *m, i2m_quality_t *q)
@@ -51,6 +79,7 @@ static i2m_err_t tet_figures(const i2m_tetmesh_t *m, i2m_quality_t *q)
   I2M_OMP(omp parallel reduction(max : maxc, maxre) reduction(min : minc) reduction(+ : above))
   {
     int64_t hist[180] = {0};
+    i2m_dihedral_bands_t bands = {{0}, {0}};
     I2M_OMP(omp for schedule(static))
     for (int64_t t = 0; t < m->nt; t++) {
       if ((t & 65535) == 65535) i2m_progress_add(&pg, 65536); /* (one thread prints, every 2 s) */
@@ -64,12 +93,16 @@ static i2m_err_t tet_figures(const i2m_tetmesh_t *m, i2m_quality_t *q)
         minc = cs[k] < minc ? cs[k] : minc; /* largest angle */
         hist[angle_bin(bins, cs[k])]++;
       }
+      i2m_dihedral_bands_add(&bands, cs);
       double re = i2m_tet_radius_edge(a, b, c, d);
       maxre = re > maxre ? re : maxre;
       above += re > q->ratio_bound * (1 + 1e-9);
     }
     I2M_OMP(omp critical(i2m_quality_hist))
-    for (int k = 0; k < 180; k++) q->dihedral_hist[k] += hist[k];
+    {
+      for (int k = 0; k < 180; k++) q->dihedral_hist[k] += hist[k];
+      i2m_dihedral_bands_merge(&q->bands, &bands);
+    }
   }
   i2m_progress_end(&pg, m->nt);
   q->min_dihedral = m->nt ? i2m_degrees_of_cosine(maxc) : 0;

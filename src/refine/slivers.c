@@ -96,6 +96,27 @@ static double tet_max_cosine(const i2m_dt_t *dt, uint32_t t)
   return i2m_tet_max_dihedral_cosine(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]));
 }
 
+void i2m_refine_dihedral_bands(const i2m_refine_t *r, i2m_dihedral_bands_t *b)
+{
+  const i2m_dt_t *dt = r->dt;
+  const int64_t nt = i2m_dt_ntets_slots(dt);
+  memset(b, 0, sizeof *b);
+  I2M_OMP(omp parallel)
+  {
+    i2m_dihedral_bands_t mine = {{0}, {0}};
+    I2M_OMP(omp for schedule(static))
+    for (int64_t t = 0; t < nt; t++) {
+      if (!tet_kept(dt, (uint32_t)t)) continue;
+      const uint32_t *v = dt->tv + 4 * (size_t)t;
+      double cs[6];
+      i2m_tet_dihedral_cosines(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), cs);
+      i2m_dihedral_bands_add(&mine, cs);
+    }
+    I2M_OMP(omp critical(i2m_dihedral_bands))
+    i2m_dihedral_bands_merge(b, &mine);
+  }
+}
+
 static i2m_err_t grow_list(uint32_t **a, uint32_t *cap, uint32_t need)
 {
   if (need <= *cap) return I2M_OK;

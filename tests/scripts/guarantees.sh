@@ -4,8 +4,10 @@
 # the run's JSON REPORT: a valid mesh; radius-edge <= the bound for every tet; interface
 # planar angles >= 30 deg (at most 0.1% exceptions); every mesh interface point within delta
 # of the image's interfaces; the two-sided 99th percentile <= delta/2; every label of >= 100
-# voxels present; per-label volume within 5% for labels of >= 10000 voxels.  The status is
-# the checker's (0: every guarantee met).
+# voxels present; per-label volume within 5% for labels of >= 10000 voxels.  Options after
+# REPORT go to i2m-check as further thresholds, e.g. --min-dihedral DEG and --max-dihedral DEG
+# (every tet's smallest and largest dihedral angle).  The status is the checker's (0: every
+# guarantee met).
 BIN=${I2M_BIN:-bin}
 DATA=${I2M_DATA:-../shared/data}
 TMP=${I2M_TMP:-$(mktemp -d)}

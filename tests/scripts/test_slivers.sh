@@ -2,20 +2,31 @@
 # --sliver-angle: the optional sliver perturbation after refinement.  On a real image, one
 # thread (so the refinement before it is the same run to run), the independent checker finds
 # every guarantee of the refinement issue still met and no tet left with a dihedral angle
-# below 5 degrees (there are thousands without the pass).  Bad values of the option get one
-# error line.
+# below 5 degrees (there are thousands without the pass; i2m-check --min-dihedral 5 fails the
+# plain mesh and passes the perturbed one); the run's dihedral bands before and after the pass
+# are the checker's on the two meshes.  Bad values of the option get one error line.
 set -eu
 . "$(dirname "$0")/guarantees.sh"
 IMG=$DATA/liver.inr.gz
 "$BIN/i2m" "$IMG" -o "$TMP/plain.vtu" --delta 1.0 --threads 1 --quiet
 "$BIN/i2m" "$IMG" -o "$TMP/perturbed.vtu" --delta 1.0 --threads 1 --sliver-angle 5 --report "$TMP/perturbed.json" --quiet
-check_guarantees "$TMP/perturbed.vtu" "$IMG" "$TMP/perturbed.json" >/dev/null
+check_guarantees "$TMP/perturbed.vtu" "$IMG" "$TMP/perturbed.json" --min-dihedral 5 >/dev/null
+if "$BIN/i2m-check" "$TMP/plain.vtu" --min-dihedral 5 >/dev/null; then
+  echo "FAIL: i2m-check --min-dihedral 5 passed a mesh with slivers"; exit 1
+fi
 "$BIN/i2m-check" "$TMP/plain.vtu" --json >"$TMP/plain.check.json"
 "$BIN/i2m-check" "$TMP/perturbed.vtu" --json >"$TMP/perturbed.check.json"
 "$PY" - "$TMP/plain.check.json" "$TMP/perturbed.check.json" "$TMP/perturbed.json" <<'PY'
 import json, sys
 a = json.load(open(sys.argv[1]))["quality"]; b = json.load(open(sys.argv[2]))["quality"]
-rep = json.load(open(sys.argv[3]))["slivers"]
+run = json.load(open(sys.argv[3])); rep = run["slivers"]
+# the run's dihedral bands, before the pass and after it, are the checker's on the plain mesh
+# (the same refinement: one thread) and on the perturbed one (two independent computations)
+bands = ["below_5", "below_10", "below_15", "below_20", "above_160", "above_170"]
+for mine, theirs, what in ((rep["dihedral_bands_before"], a, "before"), (run["quality"]["dihedral_bands"], b, "after")):
+    got = [mine[k] for k in bands]; want = [theirs["tets_dihedral_" + k] for k in bands]
+    if got != want:
+        sys.exit("dihedral bands %s the pass: the run says %s, i2m-check %s" % (what, got, want))
 print("below 5 deg: %d -> %d; smallest dihedral %.3f -> %.3f deg (the run's report: %d -> %d, %d of %d moves kept)" % (
     a["tets_dihedral_below_5"], b["tets_dihedral_below_5"], a["min_dihedral"], b["min_dihedral"],
     rep["before"], rep["after"], rep["moves_kept"], rep["moves_tried"]))

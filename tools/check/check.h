@@ -165,7 +165,8 @@ typedef struct {
   double min_dihedral, max_dihedral; /* degrees */
   int64_t min_dihedral_tet, max_dihedral_tet;
   int64_t dihedral_hist[CK_HIST_BINS];
-  int64_t dihedral_below[3]; /* tets with a dihedral angle < 5, 10, 20 degrees */
+  int64_t dihedral_below[4]; /* tets with a dihedral angle < 5, 10, 15, 20 degrees */
+  int64_t dihedral_above[2]; /* tets with a dihedral angle > 160, 170 degrees */
   double max_ratio;          /* circumradius / shortest edge */
   int64_t max_ratio_tet;
   double ratio_p50, ratio_p90, ratio_p99, ratio_p999, ratio_mean;
@@ -369,7 +370,7 @@ typedef struct {
   ck_fidelity_t fidelity;
   /* thresholds (NAN / -1 when not given) */
   double max_ratio, min_facet_angle, facet_exceptions, max_hausdorff, max_volume_error;
-  double max_mesh_to_image, max_p99;
+  double max_mesh_to_image, max_p99, min_dihedral, max_dihedral;
   int64_t volume_min_voxels, require_labels, require_whole;
   int nviol;
   char viol[CK_MAX_VIOL][256];

@@ -33,6 +33,8 @@ static const char *USAGE =
     "thresholds (exit 1 when violated):\n"
     "  --max-ratio R                 radius-edge ratio of every tetrahedron <= R\n"
     "  --min-facet-angle DEG         planar angles of interface triangles >= DEG\n"
+    "  --min-dihedral DEG            smallest dihedral angle of every tetrahedron >= DEG\n"
+    "  --max-dihedral DEG            largest dihedral angle of every tetrahedron <= DEG\n"
     "  --facet-angle-exceptions F    ... except a fraction F of the triangles (default 0)\n"
     "  --max-hausdorff MM            two-sided mesh/image interface distance <= MM (--image)\n"
     "  --max-mesh-to-image MM        distance from every mesh interface point to the image's <= MM\n"
@@ -72,6 +74,7 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
   memset(o, 0, sizeof *o);
   o->progress_interval = 2.0;
   r->max_ratio = r->min_facet_angle = r->max_hausdorff = r->max_volume_error = NAN;
+  r->min_dihedral = r->max_dihedral = NAN;
   r->max_mesh_to_image = r->max_p99 = NAN;
   r->facet_exceptions = 0;
   r->volume_min_voxels = 10000;
@@ -127,6 +130,12 @@ static int parse_args(int argc, char **argv, opts_t *o, ck_result_t *r)
         r->max_ratio = v;
       else if (strcmp(a, "--min-facet-angle") == 0)
         r->min_facet_angle = v;
+      else if (strcmp(a, "--min-dihedral") == 0 && v <= 180)
+        r->min_dihedral = v;
+      else if (strcmp(a, "--max-dihedral") == 0 && v <= 180)
+        r->max_dihedral = v;
+      else if (strcmp(a, "--min-dihedral") == 0 || strcmp(a, "--max-dihedral") == 0)
+        return fail_usage("%s takes an angle of 0..180 degrees", a);
       else if (strcmp(a, "--facet-angle-exceptions") == 0)
         r->facet_exceptions = v;
       else if (strcmp(a, "--max-hausdorff") == 0)
@@ -174,6 +183,12 @@ static void thresholds(ck_result_t *r)
   if (!isnan(r->max_ratio) && q->ratio_above_bound > 0)
     violation(r, "max-ratio: %.0f tetrahedra have a radius-edge ratio above %g (max %.4g)",
               (double)q->ratio_above_bound, r->max_ratio, q->max_ratio);
+  if (!isnan(r->min_dihedral) && !(q->min_dihedral >= r->min_dihedral)) /* (NaN fails) */
+    violation(r, "min-dihedral: the smallest dihedral angle is %.4g deg (bound %g deg; %.0f tets below 15 deg)",
+              q->min_dihedral, r->min_dihedral, (double)q->dihedral_below[2]);
+  if (!isnan(r->max_dihedral) && !(q->max_dihedral <= r->max_dihedral))
+    violation(r, "max-dihedral: the largest dihedral angle is %.4g deg (bound %g deg; %.0f tets above 160 deg)",
+              q->max_dihedral, r->max_dihedral, (double)q->dihedral_above[0]);
   if (!isnan(r->min_facet_angle)) {
     double frac = q->ntri ? (double)q->planar_below_bound / (double)q->ntri : 0;
     if (frac > r->facet_exceptions)

@@ -63,7 +63,7 @@ static double radius_edge(const double *p[4])
 
 static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
 {
-  static const double below[3] = {5.0, 10.0, 20.0};
+  static const double below[4] = {5.0, 10.0, 15.0, 20.0}, above[2] = {160.0, 170.0};
   q->min_dihedral = 180.0;
   q->max_dihedral = 0.0;
   q->min_dihedral_tet = q->max_dihedral_tet = q->max_ratio_tet = -1;
@@ -90,7 +90,8 @@ static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
       if (ang[e] < lo) lo = ang[e];
       if (ang[e] > hi) hi = ang[e];
     }
-    for (int k = 0; k < 3; k++) q->dihedral_below[k] += !(lo >= below[k]); /* (NaN counts as below) */
+    for (int k = 0; k < 4; k++) q->dihedral_below[k] += !(lo >= below[k]); /* (NaN counts as below) */
+    for (int k = 0; k < 2; k++) q->dihedral_above[k] += !(hi <= above[k]);
     if (lo < q->min_dihedral || q->min_dihedral_tet < 0) {
       q->min_dihedral = lo;
       q->min_dihedral_tet = t;

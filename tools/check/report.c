@@ -78,7 +78,10 @@ static void json_quality(FILE *f, const ck_quality_t *q)
   JI(f, "max_dihedral_tet", q->max_dihedral_tet, 0);
   JI(f, "tets_dihedral_below_5", q->dihedral_below[0], 0);
   JI(f, "tets_dihedral_below_10", q->dihedral_below[1], 0);
-  JI(f, "tets_dihedral_below_20", q->dihedral_below[2], 0);
+  JI(f, "tets_dihedral_below_15", q->dihedral_below[2], 0);
+  JI(f, "tets_dihedral_below_20", q->dihedral_below[3], 0);
+  JI(f, "tets_dihedral_above_160", q->dihedral_above[0], 0);
+  JI(f, "tets_dihedral_above_170", q->dihedral_above[1], 0);
   fprintf(f, "\"dihedral_histogram\": [");
   for (int b = 0; b < CK_HIST_BINS; b++) fprintf(f, "%s%lld", b ? ", " : "", (long long)q->dihedral_hist[b]);
   fprintf(f, "], ");
@@ -255,6 +258,8 @@ void ck_report_json(FILE *f, const ck_result_t *r)
   JD(f, "max_hausdorff", r->max_hausdorff, 0);
   JD(f, "max_mesh_to_image", r->max_mesh_to_image, 0);
   JD(f, "max_p99", r->max_p99, 0);
+  JD(f, "min_dihedral", r->min_dihedral, 0);
+  JD(f, "max_dihedral", r->max_dihedral, 0);
   JD(f, "max_volume_error", r->max_volume_error, 0);
   JI(f, "volume_min_voxels", r->volume_min_voxels, 0);
   JI(f, "require_labels", r->require_labels, 0);
@@ -323,10 +328,11 @@ static void text_validity(FILE *f, const ck_validity_t *v)
 static void text_quality(FILE *f, const ck_quality_t *q)
 {
   fprintf(f, "quality:\n  dihedral angles: min %.3f (tet %lld), max %.3f (tet %lld); tets with an "
-             "angle < 5: %lld, < 10: %lld, < 20: %lld\n",
+             "angle < 5: %lld, < 10: %lld, < 15: %lld, < 20: %lld, > 160: %lld, > 170: %lld\n",
           q->min_dihedral, (long long)q->min_dihedral_tet, q->max_dihedral,
           (long long)q->max_dihedral_tet, (long long)q->dihedral_below[0],
-          (long long)q->dihedral_below[1], (long long)q->dihedral_below[2]);
+          (long long)q->dihedral_below[1], (long long)q->dihedral_below[2], (long long)q->dihedral_below[3],
+          (long long)q->dihedral_above[0], (long long)q->dihedral_above[1]);
   fprintf(f, "  radius-edge ratio: max %.4g (tet %lld), mean %.4g, p50 %.4g, p90 %.4g, p99 %.4g, "
              "p99.9 %.4g; above %.4g: %lld, above 2: %lld\n",
           q->max_ratio, (long long)q->max_ratio_tet, q->ratio_mean, q->ratio_p50, q->ratio_p90,

@@ -125,39 +125,55 @@ static double face_dist2(const void *ctx, int64_t i, const double p[3])
   return dx * dx + dy * dy + dz * dz;
 }
 
-static i2m_err_t image_faces(const i2m_image_t *img, vface_t **out, int64_t *nout)
+/* The interface faces whose lower voxel lies in slice k (-1 .. n[2]-1), in (j, i, axis) order,
+ * into out when not NULL; returns their number. */
+static int64_t slice_faces(const i2m_image_t *img, int64_t k, vface_t *out)
 {
   int64_t n = 0;
+  for (int64_t j = -1; j < img->n[1]; j++)
+    for (int64_t i = -1; i < img->n[0]; i++) {
+      const int l0 = i2m_image_label_voxel(img, i, j, k);
+      const int64_t nb[3][3] = {{i + 1, j, k}, {i, j + 1, k}, {i, j, k + 1}};
+      for (int a = 0; a < 3; a++) {
+        /* the lower voxel may be outside on this axis only */
+        if ((a != 0 && i < 0) || (a != 1 && j < 0) || (a != 2 && k < 0)) continue;
+        if (l0 == i2m_image_label_voxel(img, nb[a][0], nb[a][1], nb[a][2])) continue;
+        if (out) out[n] = (vface_t){{(int32_t)i, (int32_t)j, (int32_t)k}, a};
+        n++;
+      }
+    }
+  return n;
+}
+
+/* Every interface face of the image, slice by slice: a count per slice, then each slice
+ * fills its own range (threads; the order is that of one pass). */
+static i2m_err_t image_faces(const i2m_image_t *img, vface_t **out, int64_t *nout)
+{
+  const int64_t ns = img->n[2] + 1; /* slices k = -1 .. n[2]-1 */
+  int64_t *off = NULL;
   *out = NULL;
+  *nout = 0;
+  I2M_CALL(i2m_calloc((size_t)ns + 1, sizeof *off, &off));
   ck_progress_t pr;
-  ck_progress_begin(&pr, "fidelity, image interface faces (2 passes)", "slices", 2 * (img->n[2] + 1));
-  for (int pass = 0; pass < 2; pass++) {
-    if (pass == 1) I2M_CALL(i2m_malloc((size_t)n, sizeof **out, out));
-    n = 0;
-    for (int64_t k = -1; k < img->n[2]; k++, ck_progress_add(&pr, 1))
-      for (int64_t j = -1; j < img->n[1]; j++)
-        for (int64_t i = -1; i < img->n[0]; i++) {
-          int l0 = i2m_image_label_voxel(img, i, j, k);
-          int64_t nb[3][3] = {{i + 1, j, k}, {i, j + 1, k}, {i, j, k + 1}};
-          for (int a = 0; a < 3; a++) {
-            /* the lower voxel may be outside on this axis only */
-            if ((a != 0 && i < 0) || (a != 1 && j < 0) || (a != 2 && k < 0)) continue;
-            int l1 = i2m_image_label_voxel(img, nb[a][0], nb[a][1], nb[a][2]);
-            if (l0 == l1) continue;
-            if (pass == 1) {
-              vface_t *f = *out + n;
-              f->c[0] = (int32_t)i;
-              f->c[1] = (int32_t)j;
-              f->c[2] = (int32_t)k;
-              f->axis = a;
-            }
-            n++;
-          }
-        }
+  ck_progress_begin(&pr, "fidelity, image interface faces (2 passes)", "slices", 2 * ns);
+  CK_OMP("omp parallel for schedule(dynamic, 2)")
+  for (int64_t s = 0; s < ns; s++) {
+    off[s + 1] = slice_faces(img, s - 1, NULL);
+    ck_progress_add(&pr, 1);
+  }
+  for (int64_t s = 0; s < ns; s++) off[s + 1] += off[s];
+  i2m_err_t err = i2m_malloc((size_t)(off[ns] ? off[ns] : 1), sizeof **out, out);
+  if (err == I2M_OK) {
+    CK_OMP("omp parallel for schedule(dynamic, 2)")
+    for (int64_t s = 0; s < ns; s++) {
+      slice_faces(img, s - 1, *out + off[s]);
+      ck_progress_add(&pr, 1);
+    }
+    *nout = off[ns];
   }
   ck_progress_end(&pr);
-  *nout = n;
-  return I2M_OK;
+  i2m_free(&off);
+  return err;
 }
 
 /* ---- mesh interface triangles in the grid frame ---- */

@@ -57,6 +57,7 @@ typedef struct i2m_label_names {
   int64_t n;      /**< number of named labels */
   int64_t *value; /**< owned: [n] label values */
   char **name;    /**< owned: [n] NUL-terminated names, each owned */
+  int32_t *colour; /**< owned: [n] 0xRRGGBB from the colour table, or -1 (none given) */
 } i2m_label_names_t;
 
 /** The name of label @p value, or NULL (also when @p names is NULL). */

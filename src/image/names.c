@@ -23,6 +23,7 @@ void i2m_label_names_destroy(i2m_label_names_t **names)
   for (int64_t i = 0; i < (*names)->n; i++) i2m_free(&(*names)->name[i]);
   i2m_free(&(*names)->name);
   i2m_free(&(*names)->value);
+  i2m_free(&(*names)->colour);
   i2m_free(names);
 }
 
@@ -33,6 +34,7 @@ i2m_err_t image_names_create(int64_t cap, i2m_label_names_t **out)
   I2M_CALL(i2m_calloc(1, sizeof *nm, &nm));
   i2m_err_t err = i2m_calloc((size_t)(cap > 0 ? cap : 1), sizeof *nm->value, &nm->value);
   if (err == I2M_OK) err = i2m_calloc((size_t)(cap > 0 ? cap : 1), sizeof *nm->name, &nm->name);
+  if (err == I2M_OK) err = i2m_calloc((size_t)(cap > 0 ? cap : 1), sizeof *nm->colour, &nm->colour);
   if (err != I2M_OK) {
     i2m_label_names_destroy(&nm);
     return err;
@@ -48,6 +50,7 @@ i2m_err_t image_names_add(i2m_label_names_t *names, int64_t value, const char *n
   memcpy(copy, name, len);
   copy[len] = '\0';
   names->value[names->n] = value;
+  names->colour[names->n] = -1;
   names->name[names->n++] = copy;
   return I2M_OK;
 }
@@ -55,19 +58,20 @@ i2m_err_t image_names_add(i2m_label_names_t *names, int64_t value, const char *n
 /* ---- .ctbl colour tables ---- */
 
 /* One table line "value name r g b a" (the name may hold spaces: every word between the value
- * and the four colour components).  Returns 0 on a malformed line. */
-static int ctbl_line(char *line, int64_t *value, char **name, size_t *len)
+ * and the four colour components); *rgb = 0xRRGGBB.  Returns 0 on a malformed line. */
+static int ctbl_line(char *line, int64_t *value, char **name, size_t *len, int32_t *rgb)
 {
   char *p = image_trim(line);
   if (image_count_words(p) < 6) return 0;
   char *end = p + strlen(p);
-  for (int w = 0; w < 4; w++) { /* the colour words, from the end */
+  int64_t c[4];
+  for (int w = 3; w >= 0; w--) { /* the colour words a, b, g, r, from the end */
     while (end > p && end[-1] != ' ' && end[-1] != '\t') end--;
-    int64_t c;
-    if (!image_parse_ints(end, &c, 1) || c < 0 || c > 255) return 0;
+    if (!image_parse_ints(end, &c[w], 1) || c[w] < 0 || c[w] > 255) return 0;
     while (end > p && (end[-1] == ' ' || end[-1] == '\t')) end--;
     *end = '\0';
   }
+  *rgb = (int32_t)(c[0] << 16 | c[1] << 8 | c[2]);
   char *sep = p + strcspn(p, " \t");
   *sep = '\0';
   if (!image_parse_ints(p, value, 1)) return 0;
@@ -93,12 +97,14 @@ static i2m_err_t ctbl_parse(FILE *f, const char *path, i2m_label_names_t *names,
     int64_t value;
     char *name;
     size_t len;
-    I2M_CHECK(ctbl_line(p, &value, &name, &len), I2M_ERR_INPUT,
+    int32_t rgb;
+    I2M_CHECK(ctbl_line(p, &value, &name, &len, &rgb), I2M_ERR_INPUT,
               "%s:%lld: expected \"value name r g b a\" (colours 0-255)", path, (long long)lineno);
     I2M_CHECK(!names_have(names, value), I2M_ERR_INPUT, "%s:%lld: value %lld named twice", path,
               (long long)lineno, (long long)value);
     I2M_CHECK(names->n < cap, I2M_ERR_INPUT, "%s: more lines than at first", path);
     I2M_CALL(image_names_add(names, value, name, len));
+    names->colour[names->n - 1] = rgb;
   }
   I2M_CHECK(!ferror(f), I2M_ERR_IO, "%s: read error", path);
   return I2M_OK;
@@ -144,6 +150,7 @@ void image_names_keep_present(i2m_label_names_t *names, const i2m_image_t *img)
       continue;
     }
     names->value[k] = names->value[i];
+    names->colour[k] = names->colour[i];
     names->name[k++] = names->name[i];
   }
   names->n = k;

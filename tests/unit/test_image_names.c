@@ -92,6 +92,12 @@ static void test_table_beside(void)
   CU_ASSERT_STRING_EQUAL(i2m_label_name(img->names, 7), "vein");
   CU_ASSERT(i2m_label_name(img->names, 9) == NULL);
   CU_ASSERT(i2m_label_name(img->names, 300) == NULL);
+  /* the colours go with the names (i2m-check's pictures use them): a name with spaces too */
+  for (int64_t i = 0; i < img->names->n; i++) {
+    const int64_t v = img->names->value[i];
+    const int32_t want = v == 0 ? 0 : v == 5 ? (10 << 16 | 20 << 8 | 30) : (1 << 16 | 2 << 8 | 3);
+    CU_ASSERT_EQUAL(img->names->colour[i], want);
+  }
   i2m_image_destroy(&img);
   remove(tmp_path("a.nrrd"));
   remove(tmp_path("a.ctbl"));

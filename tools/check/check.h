@@ -263,7 +263,7 @@ typedef struct {
 /** Colours for the distinct label values[n] (increasing), from <image base>.ctbl when there
  *  is one beside @p image_path (may be NULL): every two of them, and each and the white
  *  background, distinct (CK_MIN_DELTA_E apart while the gamut allows). */
-i2m_err_t ck_palette_build(const char *image_path, const int64_t *values, int64_t n, ck_palette_t *p);
+i2m_err_t ck_palette_build(const i2m_label_names_t *table, const int64_t *values, int64_t n, ck_palette_t *p);
 /** The entry of @p value, or NULL. */
 const ck_label_colour_t *ck_palette_find(const ck_palette_t *p, int64_t value);
 void ck_palette_free(ck_palette_t *p);
@@ -290,7 +290,7 @@ i2m_err_t ck_slice_check(const ck_mesh_t *m, const i2m_image_t *img, const ck_sl
 /** dir/dihedral_histogram.svg and one cross_section_<axis>.svg per slice (nslices 0: the
  *  three mid-planes x, y, z); a second slice along one axis is cross_section_<axis>_2.svg. */
 i2m_err_t ck_plot(const char *dir, const ck_mesh_t *m, const ck_quality_t *q, const i2m_image_t *img,
-                  const char *image_path, const ck_slice_t *slices, int nslices);
+                  const ck_slice_t *slices, int nslices);
 
 /* ---- geometry (ck_geom.c) ---- */
 /** Exact sign of det[b-a; c-a; d-a]. */

@@ -281,7 +281,7 @@ static int run(const opts_t *o, ck_result_t *r)
   thresholds(r);
   if (o->plot && r->have_quality) {
     mkdir(o->plot, 0777);
-    if (ck_plot(o->plot, &m, &r->quality, img, o->image, o->slices, o->nslices) != I2M_OK) goto fail;
+    if (ck_plot(o->plot, &m, &r->quality, img, o->slices, o->nslices) != I2M_OK) goto fail;
   }
   r->t_total = i2m_wtime() - t0;
   if (o->json)

@@ -1,5 +1,6 @@
 /* i2m-check: one colour per label for the pictures (plot.c), every two of them told apart.
- *   A label keeps the colour of the 3D Slicer colour table beside the image (<base>.ctbl)
+ *   A label keeps the colour of the 3D Slicer colour table beside the image (<stem>.ctbl, read
+ *   with the image: img->names)
  *   when that colour lies at least CK_MIN_DELTA_E (CIE76 distance in CIELAB, D65) from the
  *   background (white) and from the table colours kept before it (labels in increasing
  *   order: of two clashing labels the smaller keeps its colour).  Every other label gets the
@@ -47,62 +48,14 @@ static double lab_distance(lab_t p, lab_t q)
 
 double ck_delta_e(const int a[3], const int b[3]) { return lab_distance(rgb_to_lab(a), rgb_to_lab(b)); }
 
-/* ---- the colour table beside the image ---- */
+/* ---- the colour table beside the image (the image reader's names and colours) ---- */
 
-typedef struct {
-  int64_t value;
-  int rgb[3];
-  char name[CK_NAME_MAX];
-} entry_t;
-
-/* <image path without .gz and its extension>.ctbl, or 0 when it does not fit. */
-static int table_path(const char *image_path, char *path, size_t cap)
+/* The entry of label value in the image's names, or -1. */
+static int64_t table_find(const i2m_label_names_t *t, int64_t value)
 {
-  snprintf(path, cap, "%s", image_path);
-  size_t n = strlen(path);
-  if (n > 3 && strcmp(path + n - 3, ".gz") == 0) path[n - 3] = '\0';
-  char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
-  if (dot && (!slash || dot > slash)) *dot = '\0';
-  if (strlen(path) + 6 >= cap) return 0;
-  strcat(path, ".ctbl");
-  return 1;
-}
-
-/* Lines "value name r g b a" ('#' comments); a missing table is no table. */
-static i2m_err_t table_load(const char *image_path, entry_t **out, int64_t *nout)
-{
-  char path[4096], line[512];
-  int64_t n = 0, cap = 0;
-  *out = NULL;
-  *nout = 0;
-  if (!image_path || !table_path(image_path, path, sizeof path)) return I2M_OK;
-  FILE *f = fopen(path, "r");
-  if (!f) return I2M_OK;
-  i2m_err_t err = I2M_OK;
-  while (fgets(line, sizeof line, f)) {
-    long long v;
-    int r, g, b;
-    char name[CK_NAME_MAX];
-    if (line[0] == '#' || sscanf(line, "%lld %63s %d %d %d", &v, name, &r, &g, &b) < 5) continue;
-    if (n == cap) {
-      cap = cap ? 2 * cap : 64;
-      if ((err = i2m_realloc((size_t)cap, sizeof **out, out)) != I2M_OK) break;
-    }
-    entry_t *e = &(*out)[n++];
-    e->value = v;
-    e->rgb[0] = r & 255, e->rgb[1] = g & 255, e->rgb[2] = b & 255;
-    snprintf(e->name, sizeof e->name, "%s", name);
-  }
-  fclose(f);
-  *nout = n;
-  return err;
-}
-
-static const entry_t *table_find(const entry_t *t, int64_t n, int64_t value)
-{
-  for (int64_t i = 0; i < n; i++)
-    if (t[i].value == value) return &t[i];
-  return NULL;
+  for (int64_t i = 0; t && i < t->n; i++)
+    if (t->value[i] == value) return i;
+  return -1;
 }
 
 /* ---- choosing the colours ---- */
@@ -110,21 +63,23 @@ static const entry_t *table_find(const entry_t *t, int64_t n, int64_t value)
 static const int BACKGROUND[3] = {255, 255, 255};
 
 /* First pass: the table colours far enough from the background and the ones kept so far. */
-static void keep_table_colours(ck_palette_t *p, lab_t *lab, const entry_t *t, int64_t nt)
+static void keep_table_colours(ck_palette_t *p, lab_t *lab, const i2m_label_names_t *t)
 {
   const lab_t bg = rgb_to_lab(BACKGROUND);
   for (int64_t i = 0; i < p->n; i++) {
     ck_label_colour_t *c = &p->c[i];
-    const entry_t *e = table_find(t, nt, c->value);
-    if (!e) continue;
-    snprintf(c->name, sizeof c->name, "%s", e->name);
+    const int64_t e = table_find(t, c->value);
+    if (e < 0) continue;
+    snprintf(c->name, sizeof c->name, "%s", t->name[e]);
+    if (!t->colour || t->colour[e] < 0) continue; /* (a name without a colour: a segmentation's) */
     c->table = CK_COLOUR_REPLACED;
-    const lab_t x = rgb_to_lab(e->rgb);
+    const int rgb[3] = {t->colour[e] >> 16 & 255, t->colour[e] >> 8 & 255, t->colour[e] & 255};
+    const lab_t x = rgb_to_lab(rgb);
     int ok = lab_distance(x, bg) >= CK_MIN_DELTA_E;
     for (int64_t j = 0; ok && j < i; j++)
       if (p->c[j].table == CK_COLOUR_TABLE && lab_distance(x, lab[j]) < CK_MIN_DELTA_E) ok = 0;
     if (!ok) continue;
-    memcpy(c->rgb, e->rgb, sizeof c->rgb);
+    memcpy(c->rgb, rgb, sizeof c->rgb);
     c->table = CK_COLOUR_TABLE;
     lab[i] = x;
   }
@@ -207,10 +162,8 @@ out:
   return err;
 }
 
-i2m_err_t ck_palette_build(const char *image_path, const int64_t *values, int64_t n, ck_palette_t *p)
+i2m_err_t ck_palette_build(const i2m_label_names_t *table, const int64_t *values, int64_t n, ck_palette_t *p)
 {
-  entry_t *table = NULL;
-  int64_t nt = 0;
   lab_t *lab = NULL;
   memset(p, 0, sizeof *p);
   i2m_err_t err = I2M_OK;
@@ -219,11 +172,9 @@ i2m_err_t ck_palette_build(const char *image_path, const int64_t *values, int64_
   p->n = n;
   for (int64_t i = 0; i < n; i++)
     p->c[i] = (ck_label_colour_t){.value = values[i], .rgb = {-1, -1, -1}, .table = CK_COLOUR_NONE};
-  I2M_CALL_GOTO(err, out, table_load(image_path, &table, &nt));
-  keep_table_colours(p, lab, table, nt);
+  keep_table_colours(p, lab, table);
   I2M_CALL_GOTO(err, out, spread_colours(p, lab));
 out:
-  i2m_free(&table);
   i2m_free(&lab);
   if (err != I2M_OK) ck_palette_free(p);
   return err;

@@ -499,7 +499,7 @@ static i2m_err_t mesh_labels(const ck_mesh_t *m, int64_t **out, int64_t *nout)
 }
 
 i2m_err_t ck_plot(const char *dir, const ck_mesh_t *m, const ck_quality_t *q, const i2m_image_t *img,
-                  const char *image_path, const ck_slice_t *slices, int nslices)
+                  const ck_slice_t *slices, int nslices)
 {
   char path[4096];
   snprintf(path, sizeof path, "%s/dihedral_histogram.svg", dir);
@@ -517,7 +517,7 @@ i2m_err_t ck_plot(const char *dir, const ck_mesh_t *m, const ck_quality_t *q, co
   mesh_box(m, x.mlo, x.mhi);
   i2m_err_t err = I2M_OK;
   I2M_CALL_GOTO(err, out, mesh_labels(m, &labels, &nlabels));
-  I2M_CALL_GOTO(err, out, ck_palette_build(image_path, labels, nlabels, &pal));
+  I2M_CALL_GOTO(err, out, ck_palette_build(img ? img->names : NULL, labels, nlabels, &pal));
   for (int i = 0; i < nslices; i++) {
     int same = 0; /* earlier slices along this axis */
     for (int j = 0; j < i; j++) same += slices[j].axis == slices[i].axis;

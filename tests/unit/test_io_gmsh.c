@@ -197,7 +197,7 @@ static void test_names_and_boundaries(void)
   i2m_tetmesh_t *m = two_cubes();
   int64_t values[2] = {5, 7};
   char n5[] = "bone \"x\"\n", n7[] = "bone \"x\"\n", *nm[2] = {n5, n7};
-  i2m_label_names_t names = {2, values, nm};
+  i2m_label_names_t names = {2, values, nm, NULL};
   i2m_write_opts_t o = i2m_write_opts_default();
   o.names = &names;
   o.ascii = true;

@@ -62,6 +62,8 @@ typedef struct i2m_label_names {
 
 /** The name of label @p value, or NULL (also when @p names is NULL). */
 const char *i2m_label_name(const i2m_label_names_t *names, int64_t value);
+/** Its colour 0xRRGGBB from the colour table, or -1 (none, or no name). */
+int32_t i2m_label_colour(const i2m_label_names_t *names, int64_t value);
 /** Frees the names; accepts NULL; sets *names = NULL. */
 void i2m_label_names_destroy(i2m_label_names_t **names);
 

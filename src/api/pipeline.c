@@ -61,13 +61,9 @@ static i2m_err_t refine(i2m_pipeline_t *p)
 static i2m_err_t perturb_slivers(i2m_pipeline_t *p)
 {
   const i2m_threads_opts_t to = threads_opts(&p->opt);
-  i2m_refine_dihedral_bands(p->ref, &p->bands_before);
-  int64_t bands[I2M_DIHEDRAL_NLOW + I2M_DIHEDRAL_NHIGH];
-  memcpy(bands, p->bands_before.below, sizeof p->bands_before.below);
-  memcpy(bands + I2M_DIHEDRAL_NLOW, p->bands_before.above, sizeof p->bands_before.above);
-  i2m_par_sum_i64(p->par, bands, I2M_DIHEDRAL_NLOW + I2M_DIHEDRAL_NHIGH);
-  memcpy(p->bands_before.below, bands, sizeof p->bands_before.below);
-  memcpy(p->bands_before.above, bands + I2M_DIHEDRAL_NLOW, sizeof p->bands_before.above);
+  i2m_refine_dihedral_bands(p->ref, &p->bands_before); /* (this rank's tets: summed) */
+  i2m_par_sum_i64(p->par, p->bands_before.below, I2M_DIHEDRAL_NLOW);
+  i2m_par_sum_i64(p->par, p->bands_before.above, I2M_DIHEDRAL_NHIGH);
   if (!p->distributed) return i2m_par_agree(p->par, i2m_threads_perturb_slivers(p->ref, &to, p->opt.sliver_angle, &p->slivers));
   const i2m_dist_opts_t d = {to, NULL, -1};
   return i2m_dist_perturb_slivers(p->par, p->ref, &d, p->opt.sliver_angle, &p->slivers); /* (agreed on inside) */

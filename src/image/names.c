@@ -9,12 +9,24 @@
 #include <string.h>
 #include <sys/stat.h>
 
+/* The entry of label value, or -1. */
+static int64_t name_index(const i2m_label_names_t *names, int64_t value)
+{
+  for (int64_t i = 0; names && i < names->n; i++)
+    if (names->value[i] == value) return i;
+  return -1;
+}
+
 const char *i2m_label_name(const i2m_label_names_t *names, int64_t value)
 {
-  if (!names) return NULL;
-  for (int64_t i = 0; i < names->n; i++)
-    if (names->value[i] == value) return names->name[i];
-  return NULL;
+  const int64_t i = name_index(names, value);
+  return i < 0 ? NULL : names->name[i];
+}
+
+int32_t i2m_label_colour(const i2m_label_names_t *names, int64_t value)
+{
+  const int64_t i = name_index(names, value);
+  return i < 0 || !names->colour ? -1 : names->colour[i];
 }
 
 void i2m_label_names_destroy(i2m_label_names_t **names)

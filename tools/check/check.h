@@ -260,8 +260,8 @@ typedef struct {
   ck_label_colour_t *c;    /* owned: [n] by increasing value */
 } ck_palette_t;
 
-/** Colours for the distinct label values[n] (increasing), from <image base>.ctbl when there
- *  is one beside @p image_path (may be NULL): every two of them, and each and the white
+/** Colours for the distinct label values[n] (increasing), from the colour table the image
+ *  reader found beside the image (@p table: img->names, may be NULL): every two of them, and each and the white
  *  background, distinct (CK_MIN_DELTA_E apart while the gamut allows). */
 i2m_err_t ck_palette_build(const i2m_label_names_t *table, const int64_t *values, int64_t n, ck_palette_t *p);
 /** The entry of @p value, or NULL. */

@@ -48,16 +48,6 @@ static double lab_distance(lab_t p, lab_t q)
 
 double ck_delta_e(const int a[3], const int b[3]) { return lab_distance(rgb_to_lab(a), rgb_to_lab(b)); }
 
-/* ---- the colour table beside the image (the image reader's names and colours) ---- */
-
-/* The entry of label value in the image's names, or -1. */
-static int64_t table_find(const i2m_label_names_t *t, int64_t value)
-{
-  for (int64_t i = 0; t && i < t->n; i++)
-    if (t->value[i] == value) return i;
-  return -1;
-}
-
 /* ---- choosing the colours ---- */
 
 static const int BACKGROUND[3] = {255, 255, 255};
@@ -68,12 +58,12 @@ static void keep_table_colours(ck_palette_t *p, lab_t *lab, const i2m_label_name
   const lab_t bg = rgb_to_lab(BACKGROUND);
   for (int64_t i = 0; i < p->n; i++) {
     ck_label_colour_t *c = &p->c[i];
-    const int64_t e = table_find(t, c->value);
-    if (e < 0) continue;
-    snprintf(c->name, sizeof c->name, "%s", t->name[e]);
-    if (!t->colour || t->colour[e] < 0) continue; /* (a name without a colour: a segmentation's) */
+    const char *name = i2m_label_name(t, c->value);
+    const int32_t colour = i2m_label_colour(t, c->value);
+    if (name) snprintf(c->name, sizeof c->name, "%s", name);
+    if (colour < 0) continue; /* (no table entry, or a name without a colour: a segmentation's) */
     c->table = CK_COLOUR_REPLACED;
-    const int rgb[3] = {t->colour[e] >> 16 & 255, t->colour[e] >> 8 & 255, t->colour[e] & 255};
+    const int rgb[3] = {colour >> 16 & 255, colour >> 8 & 255, colour & 255};
     const lab_t x = rgb_to_lab(rgb);
     int ok = lab_distance(x, bg) >= CK_MIN_DELTA_E;
     for (int64_t j = 0; ok && j < i; j++)

@@ -217,6 +217,14 @@ uint32_t i2m_dt_locate(i2m_dt_ctx_t *ctx, const double p[3], uint32_t start);
 i2m_dt_status_t i2m_dt_insert_walk(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t gid,
                                    uint8_t kind, uint32_t start, uint32_t *vout);
 
+/** Moves vertex @p v (not a box corner) to p, keeping its tets, when they stay positive and
+ *  locally Delaunay across every face with v there (then they are the Delaunay
+ *  tetrahedralization of the moved points, the one a removal and a reinsertion would give):
+ *  I2M_DT_OK, ctx->newt lists v's tets (the same slots and generations) and the locks are held
+ *  (as for insert).  I2M_DT_NOT_IN_CONFLICT when some would not be Delaunay, or the statuses of
+ *  i2m_dt_remove (its star reaches a frozen or another rank's tet, ...): nothing changed. */
+i2m_dt_status_t i2m_dt_move(i2m_dt_ctx_t *ctx, uint32_t v, const double p[3]);
+
 /** Removes vertex @p v (not a box corner): its star is re-triangulated with the same
  *  symbolic perturbation, so the result is the Delaunay tetrahedralization without v.
  *  On I2M_DT_OK ctx->newt lists the new tets and the locks are held (as for insert). */

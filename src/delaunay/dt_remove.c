@@ -377,3 +377,77 @@ i2m_dt_status_t i2m_dt_remove(i2m_dt_ctx_t *ctx, uint32_t v)
   ctx->ncav = 0;
   return st;
 }
+
+/* ---- moving a vertex in place ---- */
+
+/* Does vertex e lie in the ball of tet tv (positively oriented) with its vertex `at` moved to
+ * p?  The perturbed test, with the moved vertex's own global id. */
+static int moved_insphere(const i2m_dt_t *dt, const uint32_t *tv, int at, const double p[3], uint32_t e)
+{
+  const double *q[4];
+  for (int j = 0; j < 4; j++) q[j] = j == at ? p : i2m_dt_xyz(dt, tv[j]);
+  const double *x = i2m_dt_xyz(dt, e);
+  const int s = i2m_insphere_filter(q[0], q[1], q[2], q[3], x);
+  if (I2M_LIKELY(s != 0)) return s;
+  return i2m_insphere_sos_exact(q[0], q[1], q[2], q[3], x, i2m_dt_gid(dt, tv[0]), i2m_dt_gid(dt, tv[1]),
+                                i2m_dt_gid(dt, tv[2]), i2m_dt_gid(dt, tv[3]), i2m_dt_gid(dt, e));
+}
+
+static int index_of(const uint32_t *tv, uint32_t v)
+{
+  for (int i = 0; i < 4; i++)
+    if (tv[i] == v) return i;
+  return -1;
+}
+
+/* With v at p, is every tet of its star (ctx->cav) still positive, and every face of the star
+ * locally Delaunay (the vertex across it outside the ball of the tet on this side)?  Then the
+ * same tets are the Delaunay tetrahedralization of the moved points (the Delaunay lemma). */
+static bool star_stays_delaunay(const i2m_dt_ctx_t *ctx, uint32_t v, const double p[3])
+{
+  const i2m_dt_t *dt = ctx->dt;
+  for (uint32_t k = 0; k < ctx->ncav; k++) {
+    const uint32_t *tv = dt->tv + 4 * (size_t)ctx->cav[k];
+    if (tet_orient_replace(dt, tv, index_of(tv, v), p) <= 0) return false;
+  }
+  for (uint32_t k = 0; k < ctx->ncav; k++) {
+    const uint32_t t = ctx->cav[k], *tv = dt->tv + 4 * (size_t)t;
+    const int at = index_of(tv, v);
+    for (int i = 0; i < 4; i++) {
+      const uint32_t n = dt->tn[4 * (size_t)t + i];
+      if (n == I2M_DT_NONE) continue; /* (the box's hull) */
+      if (i != at && (n >> 2) < t) continue; /* a face between two tets of the star: once */
+      if (moved_insphere(dt, tv, at, p, dt->tv[n]) > 0) return false; /* (tv[4u + j] for n = 4u + j) */
+    }
+  }
+  return true;
+}
+
+i2m_dt_status_t i2m_dt_move(i2m_dt_ctx_t *ctx, uint32_t v, const double p_in[3])
+{
+  i2m_dt_t *dt = ctx->dt;
+  ctx->nnew = 0;
+  if (v < 8 || v >= i2m_dt_nverts_slots(dt) || dt->vkind[v] == I2M_VK_DEAD || dt->vkind[v] == I2M_VK_BOX)
+    return I2M_DT_STALE;
+  double snapped[3];
+  const double *p = i2m_dt_snap(dt, p_in, snapped);
+  i2m_dt_status_t st = star_collect(ctx, v);
+  if (st == I2M_DT_OK && !star_stays_delaunay(ctx, v, p)) st = I2M_DT_NOT_IN_CONFLICT;
+  if (st == I2M_DT_OK && ctx_grow_u32(&ctx->newt, &ctx->cap_new, ctx->ncav) != I2M_OK) st = I2M_DT_FULL;
+  for (uint32_t k = 0; k < ctx->ncav; k++) {
+    const uint32_t t = ctx->cav[k];
+    meta_store(dt, t, i2m_dt_meta(dt, t) & ~I2M_TM_MARK);
+    if (st == I2M_DT_OK) ctx->newt[ctx->nnew++] = t;
+  }
+  ctx->ncav = 0;
+  if (st != I2M_DT_OK) {
+    i2m_dt_unlock_all(ctx);
+    if (st == I2M_DT_ROLLBACK) ctx->n_rollback++;
+    return st;
+  }
+  double *x = dt->xyzw + 4 * (size_t)v; /* (x[3] keeps the global id) */
+  x[0] = p[0];
+  x[1] = p[1];
+  x[2] = p[2];
+  return I2M_DT_OK;
+}

@@ -49,8 +49,9 @@ typedef struct {
   uint32_t *changed, nchanged, cap_changed;
   uint32_t *touched, ntouched, cap_touched; /* tets the moves of this round made */
   sliver_list_t deferred;                   /* slivers a zone could not hold */
+  uint32_t *saved, cap_saved;               /* an in-place move's tets: labels and tiles before */
   uint64_t rng;
-  int64_t tried, kept;
+  int64_t tried, kept, in_place, in_place_kept; /* in_place: the moves tried without a removal */
 } perturb_t;
 
 struct sliver_pass {
@@ -66,7 +67,7 @@ struct sliver_pass {
   i2m_progress_t progress;
 };
 
-enum { MOVE_ERROR = -1, MOVE_UNDONE = 0, MOVE_KEPT = 1, MOVE_DEFERRED = 2 };
+enum { MOVE_ERROR = -1, MOVE_UNDONE = 0, MOVE_KEPT = 1, MOVE_DEFERRED = 2, MOVE_NOT_IN_PLACE = 3 };
 
 static void sort4_gid(i2m_gidx_t g[4], uint32_t v[4])
 {
@@ -292,6 +293,96 @@ static i2m_err_t note_touched(perturb_t *P)
   return I2M_OK;
 }
 
+static void set_xyz(i2m_dt_t *dt, uint32_t v, const double x[3]) { memcpy(dt->xyzw + 4 * (size_t)v, x, 3 * sizeof *x); }
+
+/* Vertex v out of the grids that place it (the surface vertices', R7's) or back in. */
+static i2m_err_t grids_out(i2m_refine_t *r, uint32_t v, bool surface, bool near)
+{
+  if (surface) vgrid_remove(&r->surf, r->dt, v);
+  if (near) vgrid_remove(&r->freev, r->dt, v);
+  return I2M_OK;
+}
+
+static i2m_err_t grids_in(i2m_refine_t *r, uint32_t v, bool surface, uint32_t tag, bool near)
+{
+  if (surface) I2M_CALL(vgrid_insert(&r->surf, r->dt, v, tag));
+  if (near) I2M_CALL(vgrid_insert(&r->freev, r->dt, v, VGRID_MEMBER));
+  return I2M_OK;
+}
+
+/* Do v's tets (the changed list) lie in the same tiles with v at x0 as where it is now?  (The
+ * tiles' lists and the ranks' submeshes file a tet under its centroid's tile.) */
+static bool same_tiles(perturb_t *P, uint32_t v, const double x0[3])
+{
+  i2m_refine_t *r = P->w->r;
+  if (!r->tiling) return true;
+  const double *x = i2m_dt_xyz(r->dt, v);
+  const double p[3] = {x[0], x[1], x[2]};
+  for (uint32_t k = 0; k < P->nchanged; k++) P->saved[2 * k + 1] = tiles_tile_of_tet(r, P->changed[k]);
+  set_xyz(r->dt, v, x0);
+  bool same = true;
+  for (uint32_t k = 0; k < P->nchanged && same; k++) same = P->saved[2 * k + 1] == tiles_tile_of_tet(r, P->changed[k]);
+  set_xyz(r->dt, v, p);
+  return same;
+}
+
+/* The move of v to p without a removal, when v's tets stay Delaunay with v there
+ * (i2m_dt_move) and in the same tiles: they are labelled again and judged as a removal and a
+ * reinsertion's would be (the same tets), and undone by moving v back.  MOVE_NOT_IN_PLACE when
+ * the tets would change: nothing changed, the caller removes and reinserts. */
+static int move_in_place(perturb_t *P, uint32_t v, const double p[3], double floor_cos)
+{
+  i2m_refine_t *r = P->w->r;
+  i2m_dt_t *dt = r->dt;
+  i2m_dt_ctx_t *ctx = &P->w->ctx;
+  const double *x = i2m_dt_xyz(dt, v);
+  const double x0[3] = {x[0], x[1], x[2]};
+  const bool surface = dt->vkind[v] == I2M_VK_SURFACE;
+  const uint32_t tag = surface ? r->surf.tag[v] : 0;
+  const bool near = v < r->freev.cap_next && r->freev.tag[v] == VGRID_MEMBER;
+  grids_out(r, v, surface, near);
+  const i2m_dt_status_t st = i2m_dt_move(ctx, v, p);
+  i2m_dt_unlock_all(ctx);
+  bool moved = st == I2M_DT_OK;
+  if (moved) {
+    if (grow_list(&P->changed, &P->cap_changed, ctx->nnew) != I2M_OK ||
+        grow_list(&P->saved, &P->cap_saved, 2 * ctx->nnew) != I2M_OK)
+      return MOVE_ERROR;
+    memcpy(P->changed, ctx->newt, ctx->nnew * sizeof *P->changed);
+    P->nchanged = ctx->nnew;
+    if (!same_tiles(P, v, x0)) {
+      set_xyz(dt, v, x0);
+      moved = false;
+    }
+  }
+  if (grids_in(r, v, surface, tag, near) != I2M_OK) return MOVE_ERROR;
+  if (!moved) {
+    P->nchanged = 0;
+    return MOVE_NOT_IN_PLACE;
+  }
+  P->tried++;
+  P->in_place++;
+  for (uint32_t k = 0; k < P->nchanged; k++) {
+    const uint32_t t = P->changed[k];
+    tet_geom_t g;
+    P->saved[2 * k] = tinfo(dt, t)->label;
+    tet_geom(r, t, PROBE_NEW, &g);
+    tinfo(dt, t)->label = (uint16_t)g.label;
+  }
+  const int ok = changed_ok(P, floor_cos);
+  if (ok > 0) {
+    P->kept++;
+    P->in_place_kept++;
+    return note_touched(P) == I2M_OK ? MOVE_KEPT : MOVE_ERROR;
+  }
+  grids_out(r, v, surface, near); /* back where it was: the same tets, their old labels */
+  set_xyz(dt, v, x0);
+  if (grids_in(r, v, surface, tag, near) != I2M_OK) return MOVE_ERROR;
+  for (uint32_t k = 0; k < P->nchanged; k++) tinfo(dt, P->changed[k])->label = (uint16_t)P->saved[2 * k];
+  P->nchanged = 0;
+  return ok < 0 ? MOVE_DEFERRED : MOVE_UNDONE;
+}
+
 /* One attempt: vertex *v to p (the same kind, global id and patch).  Kept when the changed
  * tets pass; otherwise the vertex goes back to where it was (the same triangulation: its
  * star was the zone's, so it fits again, in slots the removal gave back).  *v is the
@@ -306,6 +397,8 @@ static int try_move(perturb_t *P, uint32_t *v, const double p[3], double floor_c
   const uint8_t kind = dt->vkind[*v];
   const uint32_t tag = kind == I2M_VK_SURFACE ? r->surf.tag[*v] : 0;
   const bool near = *v < r->freev.cap_next && r->freev.tag[*v] == VGRID_MEMBER;
+  const int in_place = move_in_place(P, *v, p, floor_cos); /* (a fraction of the cost, when it can) */
+  if (in_place != MOVE_NOT_IN_PLACE) return in_place;
   P->nchanged = 0;
   P->tried++;
   i2m_dt_status_t st = take_out(P, *v);
@@ -530,6 +623,7 @@ static void pass_free(i2m_refine_t *r)
     perturb_t *P = &S->per[k];
     i2m_free(&P->star);
     i2m_free(&P->changed);
+    i2m_free(&P->saved);
     i2m_free(&P->touched);
     i2m_free(&P->deferred.a);
   }
@@ -624,6 +718,8 @@ i2m_err_t i2m_refine_slivers_phase(i2m_refine_t *r, int color, const uint32_t **
   if (color == 0) {
     int64_t tried;
     moves_so_far(r, S, &tried, &S->kept_before_round);
+    i2m_debug("slivers: round %d, below %g deg: %zu slivers; %lld moves tried, %lld kept so far, %.2f s", S->round, S->bound,
+              S->list.n, (long long)tried, (long long)S->kept_before_round, i2m_wtime() - S->t0);
     I2M_CALL(group_by_tile(r, S));
   }
   S->nactive = 0;
@@ -705,6 +801,10 @@ static i2m_err_t final_stats(i2m_refine_t *r, struct sliver_pass *S, double boun
   const i2m_err_t err = collect_all(r, bound, &S->list, &S->st.min_after);
   S->st.slivers_after = (int64_t)S->list.n;
   S->st.seconds = i2m_wtime() - S->t0;
+  int64_t in_place = 0, in_place_kept = 0;
+  for (int k = 0; k < r->nworkers; k++) in_place += S->per[k].in_place, in_place_kept += S->per[k].in_place_kept;
+  i2m_debug("slivers: %lld moves tried, %lld kept; in place (without a removal) %lld tried, %lld kept; %.2f s",
+            (long long)S->st.tried, (long long)S->st.kept, (long long)in_place, (long long)in_place_kept, S->st.seconds);
   return err;
 }
 

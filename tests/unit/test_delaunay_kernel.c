@@ -270,6 +270,90 @@ static void test_remove_lattice(void)
   free(xyz);
 }
 
+/* Moves random vertices: in place when i2m_dt_move says their tets stay Delaunay, else by a
+ * removal and an insertion.  The result must be valid and the very tetrahedralization of the
+ * moved points built from scratch (the same perturbation).  axis: each vertex moves at most
+ * once, by step along an axis; else by up to `step` in every axis.  The moves done in place
+ * and by reinsertion go to counts[2]. */
+static void move_case(double *xyz, size_t n, size_t nmoves, double step, bool axis, uint64_t seed, size_t counts[2])
+{
+  int64_t *gid = malloc(n * sizeof *gid);
+  uint32_t *vid = malloc(n * sizeof *vid);
+  char *moved = calloc(n, 1);
+  for (size_t i = 0; i < n; i++) gid[i] = 8 + (int64_t)i;
+  i2m_dt_t *dt = make_dt(-64, 128, (uint32_t)n);
+  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, seed, vid, NULL) == I2M_OK);
+  i2m_dt_ctx_t ctx;
+  CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
+  rng_state ^= seed * 0x9E3779B97F4A7C15ull;
+  size_t in_place = 0, reinserted = 0;
+  for (size_t k = 0; k < nmoves; k++) {
+    const size_t i = (size_t)(urand() * (double)n) % n;
+    if (axis && moved[i]) continue;
+    double p[3];
+    for (int a = 0; a < 3; a++) p[a] = xyz[3 * i + a] + (axis ? 0.0 : step * (2 * urand() - 1));
+    if (axis) p[(int)(urand() * 3) % 3] += step;
+    const i2m_dt_status_t st = i2m_dt_move(&ctx, vid[i], p);
+    i2m_dt_unlock_all(&ctx);
+    if (st == I2M_DT_OK) {
+      in_place++;
+    } else {
+      CU_ASSERT_EQUAL_FATAL(st, I2M_DT_NOT_IN_CONFLICT);
+      CU_ASSERT_EQUAL_FATAL(i2m_dt_remove(&ctx, vid[i]), I2M_DT_OK);
+      i2m_dt_unlock_all(&ctx);
+      CU_ASSERT_EQUAL_FATAL(i2m_dt_insert_walk(&ctx, p, gid[i], I2M_VK_FREE, ctx.newt[0], &vid[i]), I2M_DT_OK);
+      i2m_dt_unlock_all(&ctx);
+      reinserted++;
+    }
+    memcpy(xyz + 3 * i, p, sizeof p);
+    moved[i] = 1;
+  }
+  i2m_dt_ctx_free(&ctx);
+  counts[0] = in_place;
+  counts[1] = reinserted;
+  assert_valid(dt);
+  int64_t c1, c2;
+  const uint64_t s1 = i2m_dt_checksum(dt, &c1);
+  i2m_dt_destroy(&dt);
+  dt = make_dt(-64, 128, (uint32_t)n);
+  insert_in_order(dt, xyz, gid, NULL, n);
+  const uint64_t s2 = i2m_dt_checksum(dt, &c2);
+  i2m_dt_destroy(&dt);
+  CU_ASSERT_EQUAL(c1, c2);
+  CU_ASSERT_EQUAL(s1, s2);
+  free(moved);
+  free(gid);
+  free(vid);
+}
+
+static void test_move_random(void)
+{
+  size_t n = N_RANDOM / 20;
+  double *xyz = malloc(3 * n * sizeof *xyz);
+  for (size_t i = 0; i < 3 * n; i++) xyz[i] = 10 * urand();
+  size_t counts[2];
+  move_case(xyz, n, n, 0.1 * 10 / cbrt((double)n), false, 21, counts); /* (a tenth of the spacing) */
+  CU_ASSERT(counts[0] > n / 20); /* (about 12% in place) */
+  CU_ASSERT(counts[1] > n / 20);
+  free(xyz);
+}
+
+/* On a lattice every configuration is cospherical: the triangulation is the perturbation's.
+ * A vertex moved onto its own place keeps its tets (each test decided by the perturbation, as
+ * when they were made); moved by an eighth of the spacing, it breaks ties otherwise and is
+ * reinserted. */
+static void test_move_lattice(void)
+{
+  size_t n, counts[2];
+  double *xyz = lattice_points(LATTICE / 2, 1.0, &n);
+  move_case(xyz, n, n / 2, 0.0, true, 22, counts);
+  CU_ASSERT(counts[0] > 0);
+  CU_ASSERT_EQUAL(counts[1], 0);
+  move_case(xyz, n, n / 2, 0.125, true, 23, counts);
+  CU_ASSERT(counts[1] > 0);
+  free(xyz);
+}
+
 static void test_remove_everything(void)
 {
   size_t n = 500;
@@ -440,6 +524,8 @@ static const test_case_t cases[] = {
     {"remove random subset of random points", test_remove_random},
     {"remove random subset of a lattice", test_remove_lattice},
     {"remove every point", test_remove_everything},
+    {"move random points: in place or reinserted, as if built anew", test_move_random},
+    {"move lattice points: onto their places in place, by h/8 reinserted, as if built anew", test_move_lattice},
     {"large star: remove, insert again", test_large_star_remove_insert},
 };
 TEST_MAIN("delaunay kernel", cases)

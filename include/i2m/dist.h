@@ -67,6 +67,10 @@ int i2m_par_bcast_int(const i2m_par_t *par, int x);
 /** Waits for every rank (collective). */
 void i2m_par_barrier(const i2m_par_t *par);
 
+/** The distance transform of @p img on every rank, each rank computing a share of it
+ *  (collective; with one process, i2m_edt_create).  Errors are agreed on. */
+i2m_err_t i2m_dist_edt_create(const i2m_par_t *par, const i2m_image_t *img, i2m_edt_t **out);
+
 /** Options of the distributed run. */
 typedef struct {
   i2m_threads_opts_t threads; /**< per process: threads, coarse factor, pinning, deterministic, depth */

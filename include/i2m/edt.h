@@ -75,6 +75,23 @@ i2m_err_t i2m_edt_components(const i2m_edt_t *e, i2m_components_t *c);
 /** Computes the feature transform of @p img (OpenMP-parallel over scanlines).  An image
  *  without any interface gives a transform with nboundary = 0.  Not collective. */
 i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out);
+
+/** Processes that compute one transform together (the dist layer makes this): process `part`
+ *  of `nparts` computes its share of each pass, and exchange() gives every process the
+ *  others' shares: for each block b < nblocks, an all-gather in place of the ranges
+ *  [displ[q], displ[q] + count[q]) of buf + b * stride from each process q; after agreeing on
+ *  err (any process's error is every process's result; with one, nothing is exchanged, and
+ *  buf may be NULL). */
+typedef struct {
+  int part, nparts;
+  i2m_err_t (*exchange)(void *ctx, i2m_err_t err, int32_t *buf, const int64_t *count, const int64_t *displ,
+                        int64_t nblocks, int64_t stride);
+  void *ctx;
+} i2m_edt_share_t;
+
+/** i2m_edt_create, each process computing a share (collective over the share's processes when
+ *  nparts > 1; NULL: alone).  Every process ends with the whole transform, the same bits. */
+i2m_err_t i2m_edt_create_shared(const i2m_image_t *img, const i2m_edt_share_t *share, i2m_edt_t **out);
 void i2m_edt_destroy(i2m_edt_t **e);
 
 /** Closest interface point z to p (grid frame) and its squared distance; +inf (and z = p)

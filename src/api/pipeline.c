@@ -100,7 +100,7 @@ static void checksum(i2m_pipeline_t *p)
 static i2m_err_t mesh_in_frame(i2m_pipeline_t *p, const i2m_refine_params_t *params)
 {
   i2m_pipeline_phase_begin(p, "distance transform");
-  AGREE(p, i2m_edt_create(p->img, &p->edt));
+  I2M_CALL(i2m_dist_edt_create(p->par, p->img, &p->edt)); /* (each rank a share; agreed on inside) */
   if (p->edt->labels_packed) i2m_image_release_voxels(p->img); /* the transform answers label queries */
   i2m_pipeline_phase_end(p, I2M_PHASE_EDT);
 

@@ -233,3 +233,36 @@ void i2m_par_self(i2m_par_t *par)
   par->comm = MPI_COMM_NULL;
 #endif
 }
+
+/* ---- the distance transform, each rank computing a share ---- */
+
+#if I2M_HAVE_MPI
+/* i2m_edt_share_t's exchange over the ranks of ctx (a parallel context). */
+static i2m_err_t edt_exchange(void *ctx, i2m_err_t err, int32_t *buf, const int64_t *count, const int64_t *displ,
+                              int64_t nblocks, int64_t stride)
+{
+  const i2m_par_t *par = ctx;
+  I2M_CALL(i2m_par_agree(par, err));
+  int *c = NULL;
+  I2M_CALL(i2m_par_agree(par, i2m_malloc(2 * (size_t)par->size, sizeof *c, &c)));
+  for (int q = 0; q < par->size; q++) { /* (each below 2^31: the box is) */
+    c[q] = (int)count[q];
+    c[par->size + q] = (int)displ[q];
+  }
+  for (int64_t b = 0; b < nblocks; b++)
+    MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, buf + b * stride, c, c + par->size, MPI_INT32_T, par->comm);
+  i2m_free(&c);
+  return I2M_OK;
+}
+#endif
+
+i2m_err_t i2m_dist_edt_create(const i2m_par_t *par, const i2m_image_t *img, i2m_edt_t **out)
+{
+#if I2M_HAVE_MPI
+  if (par->mpi && par->size > 1) {
+    const i2m_edt_share_t share = {par->rank, par->size, edt_exchange, (void *)par};
+    return i2m_par_agree(par, i2m_edt_create_shared(img, &share, out)); /* (every rank calls each exchange) */
+  }
+#endif
+  return i2m_par_agree(par, i2m_edt_create(img, out));
+}

@@ -121,11 +121,11 @@ static inline void box_coords(const i2m_edt_t *e, uint32_t f, uint32_t c[3])
 
 /* First pass, along axis 0: each voxel's nearest boundary voxel on its own row, by a
  * forward and a backward sweep. */
-static void edt_pass_rows(i2m_edt_t *e, i2m_progress_t *pg)
+static void edt_pass_rows(i2m_edt_t *e, int64_t row0, int64_t row1, i2m_progress_t *pg)
 {
-  const int64_t n = e->m[0], nrows = e->m[1] * e->m[2];
+  const int64_t n = e->m[0];
   I2M_OMP(omp parallel for schedule(static))
-  for (int64_t row = 0; row < nrows; row++) {
+  for (int64_t row = row0; row < row1; row++) {
     if ((row & 255) == 255) i2m_progress_add(pg, 256 * n);
     int32_t *ft = e->ft + row * n;
     int64_t last = -1;
@@ -148,11 +148,11 @@ static void edt_pass_rows(i2m_edt_t *e, i2m_progress_t *pg)
  * axes only, read off the index difference: along axis 1 the feature is on the voxel's own
  * row (the difference is the offset along axis 0); along axis 2 it is in the voxel's own
  * slice, whose in-slice index gives both offsets with one division. */
-static i2m_err_t edt_pass(i2m_edt_t *e, int ax, i2m_progress_t *pg)
+static i2m_err_t edt_pass(i2m_edt_t *e, int ax, int64_t line0, int64_t line1, i2m_progress_t *pg)
 {
   const int64_t *m = e->m;
   int64_t stride = ax == 1 ? m[0] : m[0] * m[1];
-  int64_t n = m[ax], nlines = m[0] * m[1] * m[2] / n;
+  int64_t n = m[ax];
   const double *sp = e->img->spacing;
   double s0 = sp[0] * sp[0], s1 = sp[1] * sp[1];
   const uint32_t m0 = (uint32_t)m[0];
@@ -165,7 +165,7 @@ static i2m_err_t edt_pass(i2m_edt_t *e, int ax, i2m_progress_t *pg)
     int32_t *feat = malloc((size_t)n * sizeof *feat);
     if (!f || !z || !g || !v || !arg || !feat) failed = 1;
     I2M_OMP(omp for schedule(dynamic, 64))
-    for (int64_t line = 0; line < nlines; line++) {
+    for (int64_t line = line0; line < line1; line++) {
       if ((line & 63) == 63) i2m_progress_add(pg, 64 * n);
       if (failed) continue;
       /* line start: axis 1 lines are indexed by (i, k), axis 2 lines by (i, j) */
@@ -210,7 +210,7 @@ static int bits_for(uint64_t maxval)
 }
 
 /* Puts each voxel's label index above its feature index when both fit in 32 bits. */
-static void pack_labels(i2m_edt_t *e, int64_t nbox)
+static void pack_labels(i2m_edt_t *e, int64_t nbox, int64_t j0, int64_t j1)
 {
   const i2m_image_t *img = e->img;
   int fbits = bits_for((uint64_t)nbox - 1), lbits = bits_for((uint64_t)img->nlabels - 1);
@@ -219,7 +219,7 @@ static void pack_labels(i2m_edt_t *e, int64_t nbox)
   e->feat_mask = fbits >= 32 ? UINT32_MAX : (1u << fbits) - 1;
   I2M_OMP(omp parallel for schedule(static))
   for (int64_t k = 0; k < e->m[2]; k++)
-    for (int64_t j = 0; j < e->m[1]; j++) {
+    for (int64_t j = j0; j < j1; j++) {
       int64_t row = (k * e->m[1] + j) * e->m[0];
       for (int64_t i = 0; i < e->m[0]; i++) {
         uint32_t lab = (uint32_t)i2m_image_label_voxel(img, e->lo[0] + i, e->lo[1] + j, e->lo[2] + k);
@@ -253,11 +253,106 @@ static void set_voxel_maps(i2m_edt_t *e)
   }
 }
 
-i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
+/* Marks the boundary voxels of slices [k0, k1) (their own index, the others -1); their
+ * number. */
+static int64_t mark_boundary(i2m_edt_t *e, int64_t k0, int64_t k1, i2m_progress_t *pg)
+{
+  const i2m_image_t *img = e->img;
+  int64_t nb = 0;
+  I2M_OMP(omp parallel for reduction(+ : nb) schedule(static))
+  for (int64_t k = k0; k < k1; k++)
+    for (int64_t j = 0; j < e->m[1]; j++) {
+      if (((k * e->m[1] + j) & 255) == 255) i2m_progress_add(pg, 256 * e->m[0]); /* (every 256 rows) */
+      const int64_t gj = e->lo[1] + j, gk = e->lo[2] + k, s1 = img->n[0], s2 = img->n[0] * img->n[1];
+      const bool inner_row = gj > 0 && gj < img->n[1] - 1 && gk > 0 && gk < img->n[2] - 1;
+      for (int64_t i = 0; i < e->m[0]; i++) {
+        const int64_t idx = (k * e->m[1] + j) * e->m[0] + i, gi = e->lo[0] + i;
+        const bool b = inner_row && gi > 0 && gi < img->n[0] - 1 ? is_boundary_inner(img, (gk * img->n[1] + gj) * s1 + gi, s1, s2)
+                                                                   : is_boundary(img, gi, gj, gk);
+        e->ft[idx] = b ? (int32_t)idx : -1;
+        nb += b;
+      }
+    }
+  return nb;
+}
+
+/* Process q's part [*lo, *hi) of n items. */
+static void share_range(const i2m_edt_share_t *sh, int q, int64_t n, int64_t *lo, int64_t *hi)
+{
+  const int P = sh ? sh->nparts : 1;
+  *lo = n * q / P;
+  *hi = n * (q + 1) / P;
+}
+
+/* Every process's slices (the first two passes done on them) to every process. */
+static i2m_err_t exchange_slices(i2m_edt_t *e, const i2m_edt_share_t *sh, i2m_err_t err, int64_t *count, int64_t *displ)
+{
+  const int64_t slice = e->m[0] * e->m[1];
+  for (int q = 0; q < sh->nparts; q++) {
+    int64_t k0, k1;
+    share_range(sh, q, e->m[2], &k0, &k1);
+    displ[q] = k0 * slice;
+    count[q] = (k1 - k0) * slice;
+  }
+  return sh->exchange(sh->ctx, err, e->ft, count, displ, 1, 0);
+}
+
+/* Every process's rows of every slice (the last pass done on them) to every process. */
+static i2m_err_t exchange_rows(i2m_edt_t *e, const i2m_edt_share_t *sh, i2m_err_t err, int64_t *count, int64_t *displ)
+{
+  for (int q = 0; q < sh->nparts; q++) {
+    int64_t j0, j1;
+    share_range(sh, q, e->m[1], &j0, &j1);
+    displ[q] = j0 * e->m[0];
+    count[q] = (j1 - j0) * e->m[0];
+  }
+  return sh->exchange(sh->ctx, err, e->ft, count, displ, e->m[2], e->m[0] * e->m[1]);
+}
+
+static int64_t count_boundary(const i2m_edt_t *e, int64_t nbox)
+{
+  int64_t nb = 0;
+  I2M_OMP(omp parallel for reduction(+ : nb) schedule(static))
+  for (int64_t idx = 0; idx < nbox; idx++) nb += i2m_edt_feature(e, idx) == (uint32_t)idx;
+  return nb;
+}
+
+/* The passes over this process's part: slices for the first two (each line of axes 0 and 1
+ * lies in one slice), rows of every slice for the third (each line of axis 2 is one (i, j)),
+ * the labels packed on those rows; with the parts exchanged in between. */
+static i2m_err_t edt_compute(i2m_edt_t *e, const i2m_edt_share_t *sh, i2m_err_t err, int64_t nbox)
+{
+  const int q = sh ? sh->part : 0;
+  int64_t k0, k1, j0, j1, *count = NULL, *displ = NULL;
+  share_range(sh, q, e->m[2], &k0, &k1);
+  share_range(sh, q, e->m[1], &j0, &j1);
+  if (err == I2M_OK && sh) err = i2m_malloc((size_t)sh->nparts, sizeof *count, &count);
+  if (err == I2M_OK && sh) err = i2m_malloc((size_t)sh->nparts, sizeof *displ, &displ);
+  i2m_progress_t pg; /* (four passes over the voxels of the box, this process's part of each) */
+  i2m_progress_begin_total(&pg, "distance transform", "voxels", 4 * nbox);
+  if (err == I2M_OK) {
+    e->nboundary = mark_boundary(e, k0, k1, &pg);
+    edt_pass_rows(e, k0 * e->m[1], k1 * e->m[1], &pg);
+    err = edt_pass(e, 1, k0 * e->m[0], k1 * e->m[0], &pg);
+  }
+  if (sh && (count || err != I2M_OK)) err = count ? exchange_slices(e, sh, err, count, displ) : sh->exchange(sh->ctx, err, NULL, NULL, NULL, 0, 0);
+  if (err == I2M_OK) err = edt_pass(e, 2, j0 * e->m[0], j1 * e->m[0], &pg);
+  if (err == I2M_OK) pack_labels(e, nbox, j0, j1);
+  if (sh && (count || err != I2M_OK)) err = count ? exchange_rows(e, sh, err, count, displ) : sh->exchange(sh->ctx, err, NULL, NULL, NULL, 0, 0);
+  if (err == I2M_OK && sh) e->nboundary = count_boundary(e, nbox);
+  i2m_progress_end(&pg, 4 * nbox);
+  i2m_free(&count);
+  i2m_free(&displ);
+  return err;
+}
+
+i2m_err_t i2m_edt_create_shared(const i2m_image_t *img, const i2m_edt_share_t *share, i2m_edt_t **out)
 {
   i2m_edt_t *e = NULL;
   *out = NULL;
-  I2M_CALL(i2m_calloc(1, sizeof *e, &e));
+  const i2m_edt_share_t *sh = share && share->nparts > 1 ? share : NULL;
+  i2m_err_t err = i2m_calloc(1, sizeof *e, &e);
+  if (err != I2M_OK) return sh ? sh->exchange(sh->ctx, err, NULL, NULL, NULL, 0, 0) : err; /* (the others learn it) */
   e->img = img;
   e->feat_mask = UINT32_MAX;
   int64_t hi[3];
@@ -278,37 +373,14 @@ i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out)
     return I2M_ERROR(I2M_ERR_UNSUPPORTED, "%s: the labelled region spans %lld voxels; at most 2^31 are supported",
                      img->path, (long long)nbox);
   }
-  i2m_err_t err = i2m_realloc_large((size_t)nbox, sizeof(int32_t), &e->ft); /* (e->ft is NULL: a malloc) */
-  if (err != I2M_OK) {
-    i2m_free(&e);
-    return err;
-  }
-  int64_t nb = 0;
-  i2m_progress_t pg; /* (four passes over the voxels of the box) */
-  i2m_progress_begin_total(&pg, "distance transform", "voxels", 4 * nbox);
-  I2M_OMP(omp parallel for reduction(+ : nb) schedule(static))
-  for (int64_t k = 0; k < e->m[2]; k++)
-    for (int64_t j = 0; j < e->m[1]; j++) {
-      if (((k * e->m[1] + j) & 255) == 255) i2m_progress_add(&pg, 256 * e->m[0]); /* (every 256 rows) */
-      const int64_t gj = e->lo[1] + j, gk = e->lo[2] + k, s1 = img->n[0], s2 = img->n[0] * img->n[1];
-      const bool inner_row = gj > 0 && gj < img->n[1] - 1 && gk > 0 && gk < img->n[2] - 1;
-      for (int64_t i = 0; i < e->m[0]; i++) {
-        const int64_t idx = (k * e->m[1] + j) * e->m[0] + i, gi = e->lo[0] + i;
-        const bool b = inner_row && gi > 0 && gi < img->n[0] - 1 ? is_boundary_inner(img, (gk * img->n[1] + gj) * s1 + gi, s1, s2)
-                                                                   : is_boundary(img, gi, gj, gk);
-        e->ft[idx] = b ? (int32_t)idx : -1;
-        nb += b;
-      }
-    }
-  e->nboundary = nb;
-  edt_pass_rows(e, &pg);
-  for (int ax = 1; ax < 3 && err == I2M_OK; ax++) err = edt_pass(e, ax, &pg);
-  i2m_progress_end(&pg, 4 * nbox);
-  if (err == I2M_OK) pack_labels(e, nbox);
+  err = i2m_realloc_large((size_t)nbox, sizeof(int32_t), &e->ft); /* (e->ft is NULL: a malloc) */
+  err = edt_compute(e, sh, err, nbox);
   if (err != I2M_OK) i2m_edt_destroy(&e);
   *out = e;
   return err;
 }
+
+i2m_err_t i2m_edt_create(const i2m_image_t *img, i2m_edt_t **out) { return i2m_edt_create_shared(img, NULL, out); }
 
 void i2m_edt_destroy(i2m_edt_t **e)
 {

@@ -267,11 +267,101 @@ static void test_components(void)
   i2m_image_destroy(&img);
 }
 
+/* ---- the transform in shares (i2m_edt_create_shared), processes simulated by threads ---- */
+
+#ifdef _OPENMP
+#include <omp.h>
+#include <string.h>
+
+typedef struct {
+  int32_t *buf[8]; /* each part's array, shared at each exchange */
+  int failed;      /* some part passed an error */
+  int fail_part;   /* the part that fails at its first exchange (-1: none) */
+  int calls[8];
+} sim_t;
+
+/* The exchange between the team's threads: each copies the others' ranges from their arrays. */
+static i2m_err_t sim_exchange(void *ctx, i2m_err_t err, int32_t *buf, const int64_t *count, const int64_t *displ,
+                              int64_t nblocks, int64_t stride)
+{
+  sim_t *S = ctx;
+  const int me = omp_get_thread_num(), P = omp_get_num_threads();
+  if (me == S->fail_part && S->calls[me] == 0) err = I2M_ERR_MEMORY;
+  S->calls[me]++;
+  if (err != I2M_OK) {
+#pragma omp atomic write
+    S->failed = 1;
+  }
+  S->buf[me] = buf;
+#pragma omp barrier
+  int failed;
+#pragma omp atomic read
+  failed = S->failed;
+  for (int q = 0; q < P && !failed; q++)
+    for (int64_t b = 0; q != me && b < nblocks; b++)
+      memcpy(buf + b * stride + displ[q], S->buf[q] + b * stride + displ[q], (size_t)count[q] * sizeof *buf);
+#pragma omp barrier
+  return failed ? I2M_ERR_MEMORY : I2M_OK;
+}
+
+/* P parts (threads) compute the transform of img together; each part's result into e[part]. */
+static void shared_edt(const i2m_image_t *img, int P, int fail_part, i2m_edt_t **e, i2m_err_t *err)
+{
+  sim_t S;
+  memset(&S, 0, sizeof S);
+  S.fail_part = fail_part;
+#pragma omp parallel num_threads(P)
+  {
+    const int q = omp_get_thread_num();
+    const i2m_edt_share_t share = {q, P, sim_exchange, &S};
+    err[q] = i2m_edt_create_shared(img, &share, &e[q]);
+  }
+}
+#endif
+
+/* Computed in 2, 3 or 5 shares (more than some axes have slices: empty shares), the transform
+ * is the one computed alone, word for word; an error in one share is every share's (none
+ * hangs). */
+static void test_shared(void)
+{
+#ifdef _OPENMP
+  const int64_t dims[2][3] = {{37, 23, 17}, {19, 4, 3}};
+  for (int d = 0; d < 2; d++) {
+    i2m_image_t *img = random_image(dims[d][0], dims[d][1], dims[d][2], 0.3);
+    i2m_edt_t *alone = NULL;
+    CU_ASSERT_FATAL(i2m_edt_create(img, &alone) == I2M_OK);
+    const int64_t nbox = alone->m[0] * alone->m[1] * alone->m[2];
+    CU_ASSERT_FATAL(nbox > 0 && alone->nboundary > 0);
+    for (int P = 2; P <= 5; P += P == 3 ? 2 : 1) {
+      i2m_edt_t *e[8] = {NULL};
+      i2m_err_t err[8];
+      shared_edt(img, P, -1, e, err);
+      for (int q = 0; q < P; q++) {
+        CU_ASSERT_EQUAL_FATAL(err[q], I2M_OK);
+        CU_ASSERT_EQUAL(e[q]->nboundary, alone->nboundary);
+        CU_ASSERT_EQUAL(e[q]->labels_packed, alone->labels_packed);
+        CU_ASSERT_EQUAL(e[q]->feat_mask, alone->feat_mask);
+        CU_ASSERT(memcmp(e[q]->ft, alone->ft, (size_t)nbox * sizeof *alone->ft) == 0);
+        i2m_edt_destroy(&e[q]);
+      }
+      shared_edt(img, P, P - 1, e, err); /* the last part fails at its first exchange */
+      for (int q = 0; q < P; q++) {
+        CU_ASSERT_NOT_EQUAL(err[q], I2M_OK);
+        CU_ASSERT_PTR_NULL(e[q]);
+      }
+    }
+    i2m_edt_destroy(&alone);
+    i2m_image_destroy(&img);
+  }
+#endif
+}
+
 static const test_case_t cases[] = {
     {"feature transform exact (brute force)", test_feature_transform_exact},
     {"closest interface point", test_closest_point},
     {"image without interface", test_no_interface},
     {"segment bisection", test_bisection},
     {"connected components against a flood fill", test_components},
+    {"transform in shares (2, 3, 5 parts) = alone; an error is every part's", test_shared},
 };
 TEST_MAIN("image oracles", cases)

@@ -1,6 +1,8 @@
 /* io layer: VTK XML unstructured grid writer (.vtu), little-endian whatever the host, UInt64
  * headers.  Two files per mesh:
- *   NAME.vtu             Points Float64, connectivity and offsets Int64, types UInt8
+ *   NAME.vtu             Points Float64, connectivity Int32 (the vertex ids are 32-bit:
+ *                        half the bytes of Int64 to convert, compress and write), offsets
+ *                        Int32 (Int64 past 2^31 - 1), types UInt8
  *                        (VTK_TETRA = 10), cell data "material" (Int32 when every label fits,
  *                        else Int64); a piece of a distributed mesh adds the point data
  *                        GlobalNodeId (Int64);
@@ -100,8 +102,11 @@ static void vtu_fill(const vtu_array_t *a, int64_t s, int64_t e, char *p)
     }
     break;
   case SRC_I32:
-    for (int64_t i = s; i < e; i++, p += w)
-      io_le64(p, (uint64_t)(int64_t)((const int32_t *)a->data)[src_index(a, i)]);
+    for (int64_t i = s; i < e; i++, p += w) {
+      const int32_t v = ((const int32_t *)a->data)[src_index(a, i)];
+      if (w == 4) io_le32(p, (uint32_t)v);
+      else io_le64(p, (uint64_t)(int64_t)v);
+    }
     break;
   case SRC_I64:
     for (int64_t i = s; i < e; i++, p += w) {
@@ -111,7 +116,11 @@ static void vtu_fill(const vtu_array_t *a, int64_t s, int64_t e, char *p)
     }
     break;
   case SRC_OFFSETS:
-    for (int64_t i = s; i < e; i++, p += w) io_le64(p, (uint64_t)(a->step * (i + 1)));
+    for (int64_t i = s; i < e; i++, p += w) {
+      const int64_t v = a->step * (i + 1);
+      if (w == 4) io_le32(p, (uint32_t)v);
+      else io_le64(p, (uint64_t)v);
+    }
     break;
   case SRC_CONST: memset(p, (int)a->step, (size_t)(e - s) * w); break;
   }
@@ -298,10 +307,10 @@ static i2m_err_t grid_write(vtu_grid_t *g, const char *path, bool compress)
 /* Cells of nper vertex ids each (int32 ids), their offsets and type. */
 static void grid_cells(vtu_grid_t *g, const int32_t *ids, int nper, int type)
 {
-  vtu_array_t *a = grid_add(g, "connectivity", "Int64", SEC_CELLS, nper * g->ncells);
+  vtu_array_t *a = grid_add(g, "connectivity", "Int32", SEC_CELLS, nper * g->ncells);
   a->src = SRC_I32;
   a->data = ids;
-  a = grid_add(g, "offsets", "Int64", SEC_CELLS, g->ncells);
+  a = grid_add(g, "offsets", nper * g->ncells <= INT32_MAX ? "Int32" : "Int64", SEC_CELLS, g->ncells);
   a->src = SRC_OFFSETS;
   a->step = nper;
   a = grid_add(g, "types", "UInt8", SEC_CELLS, g->ncells);

@@ -67,6 +67,11 @@ int i2m_par_bcast_int(const i2m_par_t *par, int x);
 /** Waits for every rank (collective). */
 void i2m_par_barrier(const i2m_par_t *par);
 
+/** Reads the image on rank 0 (i2m_image_read_with) and broadcasts it: every rank gets the
+ *  same image, the file is read and decoded once (collective; errors agreed on). */
+i2m_err_t i2m_dist_image_read(const i2m_par_t *par, const char *path, const i2m_image_read_opts_t *opts,
+                              i2m_image_t **out);
+
 /** The distance transform of @p img on every rank, each rank computing a share of it
  *  (collective; with one process, i2m_edt_create).  Errors are agreed on. */
 i2m_err_t i2m_dist_edt_create(const i2m_par_t *par, const i2m_image_t *img, i2m_edt_t **out);

@@ -111,6 +111,14 @@ i2m_err_t i2m_image_create_from_values(const int64_t n[3], const double spacing[
                                        const double origin[3], const double *dir,
                                        const int64_t *values, i2m_image_t **out);
 
+/** The image's description (geometry, label table, path, tissue names) as one buffer (the
+ *  caller frees it with i2m_free), without the voxels: for the dist layer, which broadcasts an
+ *  image read on one rank.  Host byte order. */
+i2m_err_t i2m_image_pack_meta(const i2m_image_t *img, void **buf, size_t *len);
+/** An image from such a buffer, its voxels allocated (vox, and vox_hi when the packed image
+ *  had them), not filled. */
+i2m_err_t i2m_image_unpack_meta(const void *buf, size_t len, i2m_image_t **out);
+
 /** Frees the voxels once no label lookup is needed any more (the geometry and the label
  *  table stay). */
 void i2m_image_release_voxels(i2m_image_t *img);

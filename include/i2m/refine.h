@@ -261,10 +261,12 @@ void i2m_refine_dist_resolve(i2m_refine_t *r, uint32_t id);
 /** Before a job of tiles (run by i2m_refine_tile_run, then i2m_refine_tiling_merge): their
  *  lists without stale entries, their slots granted, the grids' room made. */
 i2m_err_t i2m_refine_tiles_prepare(i2m_refine_t *r, const uint32_t *tiles, uint32_t n);
-/** Tile id's figures: fig[0] its live bad elements and bridge points (its task's work), fig[1]
- *  its wide task's, fig[2] about how many tets it holds (its list's entries, some stale),
- *  fig[3] its bridge points (its lists are cleared of stale entries). */
-void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t fig[4]);
+/** Tile id's figures (I2M_TILE_NFIG of them): fig[0] its live bad elements and bridge points
+ *  (its task's work), fig[1] its wide task's, fig[2] about how many tets it holds (its list's
+ *  entries, some stale), fig[3] its bridge points, fig[4] those left to its wide task (its
+ *  lists are cleared of stale entries). */
+#define I2M_TILE_NFIG 5
+void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t fig[I2M_TILE_NFIG]);
 /** The tiling's cells along each axis. */
 void i2m_refine_tiling_cells(const i2m_refine_t *r, int32_t n[3]);
 

@@ -82,7 +82,7 @@ static i2m_err_t run_mesher(run_t *r)
   AGREE(r, i2m_refine_params_check_geometry(&o->params, r->img));
   i2m_image_destroy(&r->img);
   ro.header_only = false;
-  AGREE(r, i2m_image_read_with(o->input, &ro, &r->img, NULL));
+  I2M_CALL(i2m_dist_image_read(r->par, o->input, &ro, &r->img)); /* (rank 0 reads, the others receive) */
   AGREE(r, i2m_refine_params_check(&o->params, r->img));
   AGREE(r, i2m_pipeline_check_estimate(r->par, r->img, &p->opt));
   i2m_pipeline_phase_end(p, I2M_PHASE_READ);

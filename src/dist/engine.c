@@ -222,12 +222,12 @@ static void apply_drops(engine_t *E)
  * or in a sliver pass its slivers (counted when the pass begins; after a task rank 0 keeps
  * what it knew of the cells, but for those done: counting them again would cost a pass over
  * their tets for every task). */
-static void cell_figures(engine_t *E, uint32_t c, bool count, int64_t fig[4])
+static void cell_figures(engine_t *E, uint32_t c, bool count, int64_t fig[I2M_TILE_NFIG])
 {
   i2m_refine_tile_figures(E->r, c, fig);
   if (!E->slivers) return;
   fig[0] = count ? i2m_refine_tile_sliver_count(E->r, c) : 0;
-  fig[1] = fig[3] = 0;
+  fig[1] = fig[3] = fig[4] = 0;
 }
 
 /* An assignment: tasks, and the holders of their blocks' cells; the submeshes held
@@ -361,7 +361,7 @@ static void finish_batch(engine_t *E)
   uint32_t *cells = NULL;
   const uint32_t nc = batch_cells(E, &cells);
   int64_t *m = NULL;
-  check(E, i2m_malloc(2 + 2 * (size_t)E->nbatch + 5 * (size_t)nc, sizeof *m, &m));
+  check(E, i2m_malloc(2 + 2 * (size_t)E->nbatch + (1 + I2M_TILE_NFIG) * (size_t)nc, sizeof *m, &m));
   size_t at = 0;
   m[at++] = E->nbatch;
   for (uint32_t k = 0; k < E->nbatch; k++) {
@@ -372,7 +372,7 @@ static void finish_batch(engine_t *E)
   for (uint32_t i = 0; i < nc; i++) {
     m[at++] = cells[i];
     cell_figures(E, cells[i], false, m + at);
-    at += 4;
+    at += I2M_TILE_NFIG;
   }
   post(E, 0, TAG_FEEDBACK, m, at * sizeof *m, MPI_INT64_T);
   i2m_free(&cells);
@@ -523,15 +523,20 @@ static void det_next(engine_t *E)
         i2m_free(&saved);
       }
       if (n) break;
-      if (E->det_points) { /* a round that inserted bridge points only: then rounds of refinement */
+      const bool points_round = E->det_points;
+      if (points_round) { /* a round that inserted bridge points only: then rounds of refinement */
         E->det_color = 0;
         E->det_points = sched_has_points(S); /* (points left where slots ran out) */
-        continue;
+        if (E->det_points) continue;
       }
-      E->det_stage = 1; /* the wide pass: its list, then its tasks one at a time */
+      /* the wide pass: its list, then its tasks one at a time; right after the bridge points,
+       * the tasks of the points no zone could hold (one process inserts every point before it
+       * refines), which insert those only */
       check(E, i2m_realloc(S->ncells + 1, sizeof *E->wide_list, &E->wide_list));
-      E->nwide = sched_wide_list(S, E->wide_list);
+      E->nwide = sched_wide_list(S, points_round, E->wide_list);
       E->wide_next = 0;
+      if (points_round && !E->nwide) continue;
+      E->det_stage = 1;
     }
     while (n == 0 && E->wide_next < E->nwide) {
       const uint32_t c = E->wide_list[E->wide_next++];
@@ -570,7 +575,8 @@ static void on_feedback(engine_t *E, int q, const int64_t *m, int n)
   const uint32_t nc = (uint32_t)m[at++];
   sched_cell_t *cells = NULL;
   check(E, i2m_malloc(nc + 1, sizeof *cells, &cells));
-  for (uint32_t i = 0; i < nc; i++, at += 5) cells[i] = (sched_cell_t){(uint32_t)m[at], m[at + 1], m[at + 2], m[at + 3], m[at + 4]};
+  for (uint32_t i = 0; i < nc; i++, at += 1 + I2M_TILE_NFIG)
+    cells[i] = (sched_cell_t){(uint32_t)m[at], m[at + 1], m[at + 2], m[at + 3], m[at + 4], m[at + 5]};
   if (E->slivers) /* (the slivers of the cells not done yet: as counted when the pass began) */
     for (uint32_t i = 0; i < nc; i++) cells[i].work = E->S.work[cells[i].cell];
   sched_feedback(&E->S, q, tasks, nt, cells, nc);
@@ -700,15 +706,17 @@ static i2m_err_t engine_seed(engine_t *E)
   sched_t *S = &E->S;
   const uint32_t nc = S->ncells;
   int64_t *fig = NULL;
-  I2M_CALL(i2m_calloc(4 * (size_t)nc, sizeof *fig, &fig));
+  const int F = I2M_TILE_NFIG;
+  I2M_CALL(i2m_calloc(F * (size_t)nc, sizeof *fig, &fig));
   for (uint32_t c = 0; c < nc; c++)
-    if (i2m_refine_holds(E->r, c)) cell_figures(E, c, true, fig + 4 * c);
-  MPI_Allreduce(MPI_IN_PLACE, fig, 4 * (int)nc, MPI_INT64_T, MPI_SUM, E->par->comm);
+    if (i2m_refine_holds(E->r, c)) cell_figures(E, c, true, fig + F * c);
+  MPI_Allreduce(MPI_IN_PLACE, fig, F * (int)nc, MPI_INT64_T, MPI_SUM, E->par->comm);
   for (uint32_t c = 0; c < nc; c++) {
-    S->work[c] = fig[4 * c];
-    S->wide[c] = fig[4 * c + 1];
-    S->tets[c] = fig[4 * c + 2];
-    S->points[c] = fig[4 * c + 3];
+    S->work[c] = fig[F * c];
+    S->wide[c] = fig[F * c + 1];
+    S->tets[c] = fig[F * c + 2];
+    S->points[c] = fig[F * c + 3];
+    S->wpoints[c] = fig[F * c + 4];
     S->lock[c] = 0;
   }
   i2m_free(&fig);
@@ -769,7 +777,7 @@ static i2m_err_t scatter_coarse(engine_t *E)
   sched_t *S = &E->S;
   if (par->rank == 0) {
     for (uint32_t c = 0; c < S->ncells; c++) {
-      int64_t fig[4];
+      int64_t fig[I2M_TILE_NFIG];
       i2m_refine_tile_figures(E->r, c, fig);
       S->tets[c] = fig[2];
     }

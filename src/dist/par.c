@@ -266,3 +266,49 @@ i2m_err_t i2m_dist_edt_create(const i2m_par_t *par, const i2m_image_t *img, i2m_
 #endif
   return i2m_par_agree(par, i2m_edt_create(img, out));
 }
+
+/* ---- the image, read once ---- */
+
+#if I2M_HAVE_MPI
+/* n bytes from rank 0 to every rank, in pieces an int counts. */
+static void bcast_bytes(const i2m_par_t *par, void *p, uint64_t n)
+{
+  const uint64_t piece = (uint64_t)1 << 30;
+  for (uint64_t at = 0; at < n; at += piece)
+    MPI_Bcast((char *)p + at, (int)(n - at < piece ? n - at : piece), MPI_BYTE, 0, par->comm);
+}
+
+static i2m_err_t image_bcast(const i2m_par_t *par, i2m_err_t err, i2m_image_t **out)
+{
+  void *buf = NULL;
+  size_t len = 0;
+  if (err == I2M_OK && par->rank == 0) err = i2m_image_pack_meta(*out, &buf, &len);
+  I2M_CALL(i2m_par_agree(par, err));
+  uint64_t n = len;
+  MPI_Bcast(&n, 1, MPI_UINT64_T, 0, par->comm);
+  if (par->rank != 0) err = i2m_malloc((size_t)n, 1, &buf);
+  if ((err = i2m_par_agree(par, err)) == I2M_OK) bcast_bytes(par, buf, n);
+  if (err == I2M_OK && par->rank != 0) err = i2m_image_unpack_meta(buf, (size_t)n, out);
+  i2m_free(&buf);
+  I2M_CALL(i2m_par_agree(par, err));
+  const i2m_image_t *img = *out;
+  const uint64_t nvox = (uint64_t)img->n[0] * (uint64_t)img->n[1] * (uint64_t)img->n[2];
+  bcast_bytes(par, img->vox, nvox);
+  if (img->vox_hi) bcast_bytes(par, img->vox_hi, nvox);
+  return I2M_OK;
+}
+#endif
+
+i2m_err_t i2m_dist_image_read(const i2m_par_t *par, const char *path, const i2m_image_read_opts_t *opts,
+                              i2m_image_t **out)
+{
+  *out = NULL;
+#if I2M_HAVE_MPI
+  if (par->mpi && par->size > 1) {
+    const i2m_err_t err = image_bcast(par, par->rank == 0 ? i2m_image_read_with(path, opts, out, NULL) : I2M_OK, out);
+    if (err != I2M_OK) i2m_image_destroy(out);
+    return err;
+  }
+#endif
+  return i2m_par_agree(par, i2m_image_read_with(path, opts, out, NULL));
+}

@@ -16,6 +16,7 @@ i2m_err_t sched_init(sched_t *S, const int32_t n[3], int nranks)
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->wide, &S->wide);
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->tets, &S->tets);
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->points, &S->points);
+  if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->wpoints, &S->wpoints);
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->holder, &S->holder); /* rank 0 holds the coarse mesh */
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->home, &S->home);
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->lock, &S->lock);
@@ -33,6 +34,7 @@ void sched_free(sched_t *S)
   i2m_free(&S->wide);
   i2m_free(&S->tets);
   i2m_free(&S->points);
+  i2m_free(&S->wpoints);
   i2m_free(&S->holder);
   i2m_free(&S->home);
   i2m_free(&S->lock);
@@ -235,6 +237,7 @@ void sched_feedback(sched_t *S, int rank, const sched_task_t *tasks, uint32_t nt
     S->wide[c->cell] = c->wide;
     S->tets[c->cell] = c->tets;
     S->points[c->cell] = c->points;
+    S->wpoints[c->cell] = c->wpoints;
   }
 }
 
@@ -307,10 +310,10 @@ uint32_t sched_phase(sched_t *S, int color, bool points_only, sched_task_t *out,
   return n;
 }
 
-uint32_t sched_wide_list(const sched_t *S, uint32_t *out)
+uint32_t sched_wide_list(const sched_t *S, bool points, uint32_t *out)
 {
   uint32_t n = 0;
   for (uint32_t c = 0; c < S->ncells; c++)
-    if (S->wide[c] > 0) out[n++] = c;
+    if ((points ? S->wpoints[c] : S->wide[c]) > 0) out[n++] = c;
   return n;
 }

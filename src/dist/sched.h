@@ -34,6 +34,7 @@ typedef struct {
   uint32_t cell;
   int64_t work, wide, tets; /* bad elements, of them for the wide task, tets held */
   int64_t points;           /* bridge points its task inserts first (counted in work) */
+  int64_t wpoints;          /* bridge points its wide task inserts first (counted in wide) */
 } sched_cell_t;
 
 typedef struct {
@@ -44,6 +45,7 @@ typedef struct {
   int64_t *wide;     /* [ncells] bad elements for its wide task */
   int64_t *tets;     /* [ncells] tets of its submesh */
   int64_t *points;   /* [ncells] bridge points for its task (the deterministic mode's first stage) */
+  int64_t *wpoints;  /* [ncells] bridge points for its wide task (the same stage's end) */
   int32_t *holder;   /* [ncells] the rank that holds its submesh (Location) */
   int32_t *home;     /* [ncells] the rank whose share of the block the cell is in (sched_partition) */
   uint32_t *lock;    /* [ncells] tasks in flight whose block holds it */
@@ -94,8 +96,9 @@ uint32_t sched_phase(sched_t *S, int color, bool points_only, sched_task_t *out,
 /** Has some cell bridge points still to insert? */
 bool sched_has_points(const sched_t *S);
 
-/** The deterministic mode's wide pass: the cells with wide work, in order. */
-uint32_t sched_wide_list(const sched_t *S, uint32_t *out);
+/** The deterministic mode's wide pass: the cells with wide work, in order (points: only those
+ *  whose wide task has bridge points, right after the stage of the points). */
+uint32_t sched_wide_list(const sched_t *S, bool points, uint32_t *out);
 
 /** A task given to a rank (its block locked and now the rank's). */
 void sched_give(sched_t *S, int rank, sched_task_t t);

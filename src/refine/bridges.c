@@ -396,8 +396,46 @@ i2m_err_t i2m_bridge_points(const i2m_refine_t *r, const i2m_pieces_global_t *G,
 
 /* ---- insertion ---- */
 
+/* A bridge point with the place of its insertion in the ranks' order. */
+typedef struct {
+  uint32_t colour, tile;
+  size_t at;
+} bridge_order_t;
+
+static int cmp_bridge_order(const void *x, const void *y)
+{
+  const bridge_order_t *a = x, *b = y;
+  if (a->colour != b->colour) return a->colour < b->colour ? -1 : 1;
+  if (a->tile != b->tile) return a->tile < b->tile ? -1 : 1;
+  return (a->at > b->at) - (a->at < b->at);
+}
+
+/* The points in the order the ranks' tasks insert them (the deterministic mode's octree):
+ * colour after colour, tile after tile, each tile's in the list's order.  The tets a point
+ * makes are classified when it goes in, against the neighbours there are then, so the order
+ * decides the elements that wait (one process must give the ranks' mesh). */
+static i2m_err_t order_like_tasks(const i2m_refine_t *r, const i2m_bridge_point_t *p, size_t n, i2m_bridge_point_t **out)
+{
+  bridge_order_t *o = NULL;
+  I2M_CALL(i2m_malloc(n ? n : 1, sizeof *o, &o));
+  for (size_t i = 0; i < n; i++) {
+    const uint32_t id = tiles_tile_of_point(r, p[i].x);
+    o[i] = (bridge_order_t){(uint32_t)tiles_color(r->tiling, id), id, i};
+  }
+  qsort(o, n, sizeof *o, cmp_bridge_order);
+  i2m_err_t err = i2m_malloc(n ? n : 1, sizeof **out, out);
+  for (size_t i = 0; i < n && err == I2M_OK; i++) (*out)[i] = p[o[i].at];
+  i2m_free(&o);
+  return err;
+}
+
 i2m_err_t i2m_refine_insert_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p, size_t n, int64_t *inserted)
 {
+  i2m_bridge_point_t *ordered = NULL;
+  if (r->tiling && r->tiling->octree) {
+    I2M_CALL(order_like_tasks(r, p, n, &ordered));
+    p = ordered;
+  }
   i2m_refine_worker_t *w = &r->workers[0];
   i2m_dt_t *dt = r->dt;
   *inserted = 0;
@@ -406,10 +444,15 @@ i2m_err_t i2m_refine_insert_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p
     while (!i2m_dt_alive(dt, hint)) hint++; /* (some tet is alive) */
     uint32_t v;
     i2m_dt_status_t st = i2m_dt_insert_walk(&w->ctx, p[i].x, p[i].gid, I2M_VK_FREE, hint, &v);
-    while (st == I2M_DT_FULL) {
+    i2m_err_t err = I2M_OK;
+    while (st == I2M_DT_FULL && err == I2M_OK) {
       i2m_dt_unlock_all(&w->ctx);
-      I2M_CALL(i2m_refine_grow(r));
-      st = i2m_dt_insert_walk(&w->ctx, p[i].x, p[i].gid, I2M_VK_FREE, hint, &v);
+      err = i2m_refine_grow(r);
+      if (err == I2M_OK) st = i2m_dt_insert_walk(&w->ctx, p[i].x, p[i].gid, I2M_VK_FREE, hint, &v);
+    }
+    if (err != I2M_OK) {
+      i2m_free(&ordered);
+      return err;
     }
     if (st != I2M_DT_OK) { /* (a vertex there already) */
       i2m_dt_unlock_all(&w->ctx);
@@ -418,12 +461,16 @@ i2m_err_t i2m_refine_insert_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p
     w->st.insertions++;
     w->st.bridges++;
     (*inserted)++;
-    i2m_err_t err = worker_keep_created(w);
+    err = worker_keep_created(w);
     if (err == I2M_OK) err = worker_process_created(w, w->created, w->ncreated);
     i2m_dt_unlock_all(&w->ctx);
-    I2M_CALL(err);
+    if (err != I2M_OK) {
+      i2m_free(&ordered);
+      return err;
+    }
     hint = w->created[0];
   }
+  i2m_free(&ordered);
   if (r->tiling) tiles_canonical_all(r); /* (the same order as where ranks inserted them) */
   if (*inserted) pieces_invalidate(r); /* (the mesh changed) */
   return I2M_OK;

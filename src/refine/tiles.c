@@ -802,7 +802,7 @@ i2m_err_t i2m_refine_tiles_prepare(i2m_refine_t *r, const uint32_t *tiles, uint3
   return vgrid_reserve(&r->freev, r->dt->cap_v);
 }
 
-void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t fig[4])
+void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t fig[I2M_TILE_NFIG])
 {
   tile_t *tl = &r->tiling->tile[id];
   if (tl->dirty) tiles_canonical(r, id);
@@ -812,6 +812,7 @@ void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t fig[4])
   fig[1] = (int64_t)tile_wide_work(tl);
   fig[2] = tl->ntets; /* (an estimate: stale entries are dropped when the list grows) */
   fig[3] = tl->npts;
+  fig[4] = tl->nwpts;
 }
 
 void i2m_refine_tiling_cells(const i2m_refine_t *r, int32_t n[3])

@@ -150,18 +150,23 @@ if [ "$(checksum "$TMP/s1det.json" 2>/dev/null)" = "$(checksum "$TMP/s2det.json"
   echo "ok   shells.nrrd --sliver-angle 10 --deterministic: the same checksum at 1 and 2 ranks"
 else echo "FAIL shells.nrrd --sliver-angle 10 --deterministic: checksums differ at 1 and 2 ranks"; fail=1; fi
 
-# --deterministic: one mesh, whoever makes it
-for img in "$TMP/shells.nrrd" "$DATA/vertebrae_vbseg.mha"; do
+# --deterministic: one mesh, whoever makes it.  The knee at delta 1.5: two rounds of the
+# component rule (83 and 40 bridge points, one of them left to a wide task), where one process
+# once inserted the points in another order than the ranks' tasks (the elements they make wait
+# according to the neighbours there are when they go in)
+for spec in "$TMP/shells.nrrd:" "$DATA/vertebrae_vbseg.mha:" "$DATA/knee_atlas.nrrd:--delta 1.5"; do
+  img=${spec%%:*} opts=${spec#*:}
   name=$(basename "$img")
-  timeout 300 "$BIN/i2m" "$img" -o "$TMP/d.vtu" --deterministic --threads 2 --quiet --report "$TMP/d0.json"
+  timeout 300 "$BIN/i2m" "$img" -o "$TMP/d.vtu" --deterministic --threads 2 $opts --quiet --report "$TMP/d0.json" 2>"$TMP/log"
   want=$(checksum "$TMP/d0.json")
   runs="1 1,1 2,2 1,2 2,4 1"
-  [ "$name" = shells.nrrd ] || runs="2 2,4 1" # (the real image: two of them)
+  [ "$name" = shells.nrrd ] || runs="2 2,4 1" # (the real images: two of them, one for the knee)
+  [ "$name" = knee_atlas.nrrd ] && runs="2 1"
   IFS=,
   for run in $runs; do
     IFS=" "
     set -- $run
-    if ! timeout 300 $MPIRUN -np "$1" "$BIN/i2m" "$img" -o "$TMP/d.vtu" --deterministic --threads "$2" --quiet \
+    if ! timeout 300 $MPIRUN -np "$1" "$BIN/i2m" "$img" -o "$TMP/d.vtu" --deterministic --threads "$2" $opts --quiet \
       --report "$TMP/d.json" >"$TMP/log" 2>&1; then
       echo "FAIL $name deterministic, $1 ranks x $2 threads: i2m failed"; tail -5 "$TMP/log"; fail=1; continue
     fi

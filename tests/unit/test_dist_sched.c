@@ -512,7 +512,7 @@ static bool sim_request(sim_t *m, int rank)
 /* New figures of one cell of a finished task's block. */
 static sched_cell_t new_figures(sim_t *m, uint32_t c, const batch_t *b)
 {
-  sched_cell_t f = {c, m->work[c], m->wide[c], below(&m->rng, 3000), m->S.points[c]};
+  sched_cell_t f = {c, m->work[c], m->wide[c], below(&m->rng, 3000), m->S.points[c], m->S.wpoints[c]};
   bool centre = false;
   for (uint32_t k = 0; k < b->n; k++) {
     if (b->t[k].cell != c) continue;
@@ -679,7 +679,7 @@ static bool det_wide(sim_t *m)
 {
   uint32_t *list = malloc((m->S.ncells + 1) * sizeof *list);
   EXPECT(m, list, "out of memory");
-  const uint32_t n = sched_wide_list(&m->S, list);
+  const uint32_t n = sched_wide_list(&m->S, false, list);
   uint32_t k = 0;
   bool good = true;
   for (uint32_t c = 0; c < m->S.ncells && good; c++) /* every cell with wide work, in order */
@@ -764,16 +764,19 @@ static void test_wide_list(void)
   sched_t S;
   uint32_t list[121];
   CU_ASSERT_FATAL(sched_init(&S, n, 2) == I2M_OK);
-  CU_ASSERT_EQUAL(sched_wide_list(&S, list), 0);
+  CU_ASSERT_EQUAL(sched_wide_list(&S, false, list), 0);
   S.wide[119] = 2;
   S.wide[0] = 1;
   S.wide[57] = 5;
   S.work[3] = 4;  /* normal work: not on the list */
   S.wide[8] = -1; /* (not a positive figure) */
-  CU_ASSERT_EQUAL(sched_wide_list(&S, list), 3);
+  CU_ASSERT_EQUAL(sched_wide_list(&S, false, list), 3);
   CU_ASSERT(list[0] == 0 && list[1] == 57 && list[2] == 119);
+  S.wpoints[57] = 2; /* right after the bridge points: only the wide tasks with points */
+  CU_ASSERT_EQUAL(sched_wide_list(&S, true, list), 1);
+  CU_ASSERT(list[0] == 57);
   for (uint32_t c = 0; c < S.ncells; c++) S.wide[c] = 1;
-  CU_ASSERT_EQUAL(sched_wide_list(&S, list), 120);
+  CU_ASSERT_EQUAL(sched_wide_list(&S, false, list), 120);
   bool ordered = true;
   for (uint32_t i = 0; i < 120; i++) ordered &= list[i] == i;
   CU_ASSERT(ordered);
@@ -805,7 +808,7 @@ static void test_busy_by_hand(void)
   S.work[100 + 4] = 1; /* four: it can */
   CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 1, 4, t), 1);
   CU_ASSERT(t[0].cell == 104 && !t[0].wide);
-  const sched_cell_t done_wide = {100, 0, 0, 10, 0}, done_104 = {104, 0, 0, 10, 0};
+  const sched_cell_t done_wide = {100, 0, 0, 10, 0, 0}, done_104 = {104, 0, 0, 10, 0, 0};
   const sched_task_t w = {100, true}, x = {104, false};
   sched_feedback(&S, 2, &w, 1, &done_wide, 1);
   CU_ASSERT(sched_busy(&S));

@@ -53,6 +53,75 @@ static i2m_image_t *read_tmp(const char *name)
   return img;
 }
 
+/* Image a unpacked from b's description and voxels: the same in every field. */
+static void assert_same_image(const i2m_image_t *a, const i2m_image_t *b)
+{
+  const size_t nvox = (size_t)(a->n[0] * a->n[1] * a->n[2]);
+  CU_ASSERT(memcmp(a->n, b->n, sizeof a->n) == 0 && memcmp(a->spacing, b->spacing, sizeof a->spacing) == 0);
+  CU_ASSERT(memcmp(a->origin, b->origin, sizeof a->origin) == 0 && memcmp(a->dir, b->dir, sizeof a->dir) == 0);
+  CU_ASSERT(a->file_type == b->file_type && a->nlabels == b->nlabels && strcmp(a->path, b->path) == 0);
+  CU_ASSERT(memcmp(a->label_value, b->label_value, (size_t)a->nlabels * sizeof *a->label_value) == 0);
+  CU_ASSERT(memcmp(a->label_count, b->label_count, (size_t)a->nlabels * sizeof *a->label_count) == 0);
+  CU_ASSERT(memcmp(a->vox, b->vox, nvox) == 0);
+  CU_ASSERT((a->vox_hi == NULL) == (b->vox_hi == NULL));
+  if (a->vox_hi && b->vox_hi) CU_ASSERT(memcmp(a->vox_hi, b->vox_hi, nvox) == 0);
+  CU_ASSERT((a->names == NULL) == (b->names == NULL));
+  if (!a->names || !b->names) return;
+  CU_ASSERT_FATAL(a->names->n == b->names->n);
+  for (int64_t i = 0; i < a->names->n; i++) {
+    CU_ASSERT(a->names->value[i] == b->names->value[i] && a->names->colour[i] == b->names->colour[i]);
+    CU_ASSERT_STRING_EQUAL(a->names->name[i], b->names->name[i]);
+  }
+}
+
+/* What a rank that did not read the file gets (i2m_dist_image_read): the description packed
+ * and unpacked, the voxels copied as they are. */
+static i2m_image_t *pack_round_trip(const i2m_image_t *img)
+{
+  void *buf = NULL;
+  size_t len = 0;
+  i2m_image_t *out = NULL;
+  CU_ASSERT_FATAL(i2m_image_pack_meta(img, &buf, &len) == I2M_OK);
+  CU_ASSERT_FATAL(i2m_image_unpack_meta(buf, len, &out) == I2M_OK);
+  const size_t nvox = (size_t)(img->n[0] * img->n[1] * img->n[2]);
+  memcpy(out->vox, img->vox, nvox);
+  if (img->vox_hi && out->vox_hi) memcpy(out->vox_hi, img->vox_hi, nvox);
+  i2m_image_t *cut = NULL; /* (a description cut short is refused) */
+  CU_ASSERT(i2m_image_unpack_meta(buf, len - 8, &cut) != I2M_OK && cut == NULL);
+  i2m_free(&buf);
+  return out;
+}
+
+/* The knee atlas (names with colours) and an image of more than 255 labels (high bytes),
+ * oblique, with a name holding spaces. */
+static void test_pack_round_trip(void)
+{
+  char path[1024];
+  i2m_image_t *img = NULL;
+  snprintf(path, sizeof path, "%s/knee_atlas.nrrd", test_data_dir());
+  CU_ASSERT_FATAL(i2m_image_read(path, &img) == I2M_OK);
+  i2m_image_t *copy = pack_round_trip(img);
+  assert_same_image(copy, img);
+  i2m_image_destroy(&copy);
+  i2m_image_destroy(&img);
+  const int64_t n[3] = {7, 9, 11};
+  const double sp[3] = {0.5, 0.75, 2.0}, org[3] = {-3.0, 1e7, 42.0};
+  const double dir[9] = {0, 1, 0, -1, 0, 0, 0, 0, 1};
+  int64_t *v = malloc(7 * 9 * 11 * sizeof *v);
+  for (int64_t i = 0; i < 7 * 9 * 11; i++) v[i] = 1000 + i % 300;
+  CU_ASSERT_FATAL(i2m_image_create_from_values(n, sp, org, dir, v, &img) == I2M_OK);
+  free(v);
+  CU_ASSERT_FATAL(img->vox_hi != NULL && img->nlabels == 301);
+  CU_ASSERT_FATAL(image_names_create(2, &img->names) == I2M_OK);
+  CU_ASSERT_FATAL(image_names_add(img->names, 1000, "a name with spaces", 18) == I2M_OK);
+  CU_ASSERT_FATAL(image_names_add(img->names, 1299, "x", 1) == I2M_OK);
+  img->names->colour[0] = 0x123456;
+  copy = pack_round_trip(img);
+  assert_same_image(copy, img);
+  i2m_image_destroy(&copy);
+  i2m_image_destroy(&img);
+}
+
 static void test_knee_atlas(void)
 {
   char path[1024];
@@ -244,6 +313,7 @@ static void test_cleanup(void)
 
 static const test_case_t cases[] = {
     {"knee atlas: names of its .ctbl, labels present only", test_knee_atlas},
+    {"an image's description packed and unpacked (names, colours, high bytes)", test_pack_round_trip},
     {"colour table beside an image: comments, spaces, CRLF", test_table_beside},
     {"malformed or missing table: no names, the read succeeds", test_table_malformed},
     {"segmentation, one layer: values kept, segment names", test_seg_one_layer},

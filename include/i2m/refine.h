@@ -475,8 +475,10 @@ i2m_err_t i2m_refine_split_claims(i2m_refine_t *r, const i2m_pieces_global_t *G,
  *  the path passes from one class to another.  Pure; round numbers the global ids. */
 i2m_err_t i2m_bridge_points(const i2m_refine_t *r, const i2m_pieces_global_t *G, i2m_voxel_claim_t *claims,
                             size_t nclaims, int round, i2m_bridge_point_t **out, size_t *np);
-/** One process: inserts the points now (worker 0, in order; their tets queued for refinement,
- *  in the tiles if a tiling is in place, then put in an order of their own). */
+/** One process: inserts the points now (worker 0; on the octree's tiles in the order the
+ *  ranks' tasks insert them, colour by colour and tile by tile, else in the list's order; their
+ *  tets queued for refinement, in the tiles if a tiling is in place, then put in an order of
+ *  their own). */
 i2m_err_t i2m_refine_insert_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p, size_t n, int64_t *inserted);
 /** Dist layer: the points whose cell this rank holds become work of that cell's task (which
  *  inserts them first).  Returns through *filed how many.  Every rank calls it with every

@@ -284,29 +284,21 @@ static void share_range(const i2m_edt_share_t *sh, int q, int64_t n, int64_t *lo
   *hi = n * (q + 1) / P;
 }
 
-/* Every process's slices (the first two passes done on them) to every process. */
-static i2m_err_t exchange_slices(i2m_edt_t *e, const i2m_edt_share_t *sh, i2m_err_t err, int64_t *count, int64_t *displ)
+/* Every process's part to every process, after agreeing on err: its slices (the first two
+ * passes done on them), or with rows its rows of every slice (the third).  Every process makes
+ * these two exchanges, also after an error (count and displ may then be NULL). */
+static i2m_err_t exchange_parts(i2m_edt_t *e, const i2m_edt_share_t *sh, bool rows, i2m_err_t err, int64_t *count,
+                                int64_t *displ)
 {
-  const int64_t slice = e->m[0] * e->m[1];
+  if (err != I2M_OK) return sh->exchange(sh->ctx, err, NULL, NULL, NULL, 0, 0);
+  const int64_t slice = e->m[0] * e->m[1], unit = rows ? e->m[0] : slice;
   for (int q = 0; q < sh->nparts; q++) {
-    int64_t k0, k1;
-    share_range(sh, q, e->m[2], &k0, &k1);
-    displ[q] = k0 * slice;
-    count[q] = (k1 - k0) * slice;
+    int64_t lo, hi;
+    share_range(sh, q, rows ? e->m[1] : e->m[2], &lo, &hi);
+    displ[q] = lo * unit;
+    count[q] = (hi - lo) * unit;
   }
-  return sh->exchange(sh->ctx, err, e->ft, count, displ, 1, 0);
-}
-
-/* Every process's rows of every slice (the last pass done on them) to every process. */
-static i2m_err_t exchange_rows(i2m_edt_t *e, const i2m_edt_share_t *sh, i2m_err_t err, int64_t *count, int64_t *displ)
-{
-  for (int q = 0; q < sh->nparts; q++) {
-    int64_t j0, j1;
-    share_range(sh, q, e->m[1], &j0, &j1);
-    displ[q] = j0 * e->m[0];
-    count[q] = (j1 - j0) * e->m[0];
-  }
-  return sh->exchange(sh->ctx, err, e->ft, count, displ, e->m[2], e->m[0] * e->m[1]);
+  return sh->exchange(sh->ctx, I2M_OK, e->ft, count, displ, rows ? e->m[2] : 1, slice);
 }
 
 static int64_t count_boundary(const i2m_edt_t *e, int64_t nbox)
@@ -335,10 +327,10 @@ static i2m_err_t edt_compute(i2m_edt_t *e, const i2m_edt_share_t *sh, i2m_err_t 
     edt_pass_rows(e, k0 * e->m[1], k1 * e->m[1], &pg);
     err = edt_pass(e, 1, k0 * e->m[0], k1 * e->m[0], &pg);
   }
-  if (sh && (count || err != I2M_OK)) err = count ? exchange_slices(e, sh, err, count, displ) : sh->exchange(sh->ctx, err, NULL, NULL, NULL, 0, 0);
+  if (sh) err = exchange_parts(e, sh, false, err, count, displ);
   if (err == I2M_OK) err = edt_pass(e, 2, j0 * e->m[0], j1 * e->m[0], &pg);
   if (err == I2M_OK) pack_labels(e, nbox, j0, j1);
-  if (sh && (count || err != I2M_OK)) err = count ? exchange_rows(e, sh, err, count, displ) : sh->exchange(sh->ctx, err, NULL, NULL, NULL, 0, 0);
+  if (sh) err = exchange_parts(e, sh, true, err, count, displ);
   if (err == I2M_OK && sh) e->nboundary = count_boundary(e, nbox);
   i2m_progress_end(&pg, 4 * nbox);
   i2m_free(&count);
@@ -352,7 +344,11 @@ i2m_err_t i2m_edt_create_shared(const i2m_image_t *img, const i2m_edt_share_t *s
   *out = NULL;
   const i2m_edt_share_t *sh = share && share->nparts > 1 ? share : NULL;
   i2m_err_t err = i2m_calloc(1, sizeof *e, &e);
-  if (err != I2M_OK) return sh ? sh->exchange(sh->ctx, err, NULL, NULL, NULL, 0, 0) : err; /* (the others learn it) */
+  if (err != I2M_OK && sh) { /* the others learn it in the two exchanges every process makes */
+    err = exchange_parts(NULL, sh, false, err, NULL, NULL);
+    return exchange_parts(NULL, sh, true, err, NULL, NULL);
+  }
+  I2M_CALL(err);
   e->img = img;
   e->feat_mask = UINT32_MAX;
   int64_t hi[3];

@@ -89,6 +89,13 @@ static int64_t src_index(const vtu_array_t *a, int64_t i)
   return e * a->stride + a->first;
 }
 
+/* An integer in w bytes (4 or 8), little-endian at p. */
+static inline void put_int(char *p, size_t w, int64_t v)
+{
+  if (w == 4) io_le32(p, (uint32_t)(int32_t)v);
+  else io_le64(p, (uint64_t)v);
+}
+
 /* Values [s, e) of a, little-endian at p. */
 static void vtu_fill(const vtu_array_t *a, int64_t s, int64_t e, char *p)
 {
@@ -102,25 +109,13 @@ static void vtu_fill(const vtu_array_t *a, int64_t s, int64_t e, char *p)
     }
     break;
   case SRC_I32:
-    for (int64_t i = s; i < e; i++, p += w) {
-      const int32_t v = ((const int32_t *)a->data)[src_index(a, i)];
-      if (w == 4) io_le32(p, (uint32_t)v);
-      else io_le64(p, (uint64_t)(int64_t)v);
-    }
+    for (int64_t i = s; i < e; i++, p += w) put_int(p, w, ((const int32_t *)a->data)[src_index(a, i)]);
     break;
   case SRC_I64:
-    for (int64_t i = s; i < e; i++, p += w) {
-      const int64_t v = ((const int64_t *)a->data)[src_index(a, i)];
-      if (w == 4) io_le32(p, (uint32_t)(int32_t)v);
-      else io_le64(p, (uint64_t)v);
-    }
+    for (int64_t i = s; i < e; i++, p += w) put_int(p, w, ((const int64_t *)a->data)[src_index(a, i)]);
     break;
   case SRC_OFFSETS:
-    for (int64_t i = s; i < e; i++, p += w) {
-      const int64_t v = a->step * (i + 1);
-      if (w == 4) io_le32(p, (uint32_t)v);
-      else io_le64(p, (uint64_t)v);
-    }
+    for (int64_t i = s; i < e; i++, p += w) put_int(p, w, a->step * (i + 1));
     break;
   case SRC_CONST: memset(p, (int)a->step, (size_t)(e - s) * w); break;
   }

@@ -429,30 +429,20 @@ static i2m_err_t order_like_tasks(const i2m_refine_t *r, const i2m_bridge_point_
   return err;
 }
 
-i2m_err_t i2m_refine_insert_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p, size_t n, int64_t *inserted)
+/* Inserts the points in their order with worker 0, each one's new tets classified. */
+static i2m_err_t insert_in_order(i2m_refine_t *r, const i2m_bridge_point_t *p, size_t n, int64_t *inserted)
 {
-  i2m_bridge_point_t *ordered = NULL;
-  if (r->tiling && r->tiling->octree) {
-    I2M_CALL(order_like_tasks(r, p, n, &ordered));
-    p = ordered;
-  }
   i2m_refine_worker_t *w = &r->workers[0];
   i2m_dt_t *dt = r->dt;
-  *inserted = 0;
   uint32_t hint = 0;
   for (size_t i = 0; i < n; i++) {
     while (!i2m_dt_alive(dt, hint)) hint++; /* (some tet is alive) */
     uint32_t v;
     i2m_dt_status_t st = i2m_dt_insert_walk(&w->ctx, p[i].x, p[i].gid, I2M_VK_FREE, hint, &v);
-    i2m_err_t err = I2M_OK;
-    while (st == I2M_DT_FULL && err == I2M_OK) {
+    while (st == I2M_DT_FULL) {
       i2m_dt_unlock_all(&w->ctx);
-      err = i2m_refine_grow(r);
-      if (err == I2M_OK) st = i2m_dt_insert_walk(&w->ctx, p[i].x, p[i].gid, I2M_VK_FREE, hint, &v);
-    }
-    if (err != I2M_OK) {
-      i2m_free(&ordered);
-      return err;
+      I2M_CALL(i2m_refine_grow(r));
+      st = i2m_dt_insert_walk(&w->ctx, p[i].x, p[i].gid, I2M_VK_FREE, hint, &v);
     }
     if (st != I2M_DT_OK) { /* (a vertex there already) */
       i2m_dt_unlock_all(&w->ctx);
@@ -461,16 +451,23 @@ i2m_err_t i2m_refine_insert_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p
     w->st.insertions++;
     w->st.bridges++;
     (*inserted)++;
-    err = worker_keep_created(w);
+    i2m_err_t err = worker_keep_created(w);
     if (err == I2M_OK) err = worker_process_created(w, w->created, w->ncreated);
     i2m_dt_unlock_all(&w->ctx);
-    if (err != I2M_OK) {
-      i2m_free(&ordered);
-      return err;
-    }
+    I2M_CALL(err);
     hint = w->created[0];
   }
+  return I2M_OK;
+}
+
+i2m_err_t i2m_refine_insert_bridges(i2m_refine_t *r, const i2m_bridge_point_t *p, size_t n, int64_t *inserted)
+{
+  i2m_bridge_point_t *ordered = NULL;
+  *inserted = 0;
+  if (r->tiling && r->tiling->octree) I2M_CALL(order_like_tasks(r, p, n, &ordered));
+  const i2m_err_t err = insert_in_order(r, ordered ? ordered : p, n, inserted);
   i2m_free(&ordered);
+  I2M_CALL(err);
   if (r->tiling) tiles_canonical_all(r); /* (the same order as where ranks inserted them) */
   if (*inserted) pieces_invalidate(r); /* (the mesh changed) */
   return I2M_OK;

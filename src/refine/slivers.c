@@ -172,6 +172,41 @@ static i2m_err_t star_of(perturb_t *P, uint32_t v)
   return I2M_OK;
 }
 
+/* Tet t's label from its circumcentre, as at its creation. */
+static void label_tet(const i2m_refine_t *r, uint32_t t)
+{
+  tet_geom_t g;
+  tet_geom(r, t, PROBE_NEW, &g);
+  tinfo(r->dt, t)->label = (uint16_t)g.label;
+}
+
+/* Where the grids place a vertex: the surface vertices' (with its patch) and R7's. */
+typedef struct {
+  bool surface, near;
+  uint32_t tag;
+} vplace_t;
+
+static vplace_t place_of(const i2m_refine_t *r, uint32_t v)
+{
+  vplace_t g = {r->dt->vkind[v] == I2M_VK_SURFACE, v < r->freev.cap_next && r->freev.tag[v] == VGRID_MEMBER, 0};
+  if (g.surface) g.tag = r->surf.tag[v];
+  return g;
+}
+
+/* Vertex v out of its grids, or into them at its place now. */
+static void grids_out(i2m_refine_t *r, uint32_t v, vplace_t g)
+{
+  if (g.surface) vgrid_remove(&r->surf, r->dt, v);
+  if (g.near) vgrid_remove(&r->freev, r->dt, v);
+}
+
+static i2m_err_t grids_in(i2m_refine_t *r, uint32_t v, vplace_t g)
+{
+  if (g.surface) I2M_CALL(vgrid_insert(&r->surf, r->dt, v, g.tag));
+  if (g.near) I2M_CALL(vgrid_insert(&r->freev, r->dt, v, VGRID_MEMBER));
+  return I2M_OK;
+}
+
 /* Labels the tets the last kernel operation created (the rules compare neighbours' labels)
  * and appends them to the changed list. */
 static i2m_err_t label_created(perturb_t *P)
@@ -180,11 +215,8 @@ static i2m_err_t label_created(perturb_t *P)
   const i2m_dt_ctx_t *ctx = &P->w->ctx;
   I2M_CALL(grow_list(&P->changed, &P->cap_changed, P->nchanged + ctx->nnew));
   for (uint32_t k = 0; k < ctx->nnew; k++) {
-    const uint32_t t = ctx->newt[k];
-    tet_geom_t g;
-    tet_geom(r, t, PROBE_NEW, &g);
-    tinfo(r->dt, t)->label = (uint16_t)g.label;
-    P->changed[P->nchanged++] = t;
+    label_tet(r, ctx->newt[k]);
+    P->changed[P->nchanged++] = ctx->newt[k];
   }
   return dist_tracking(r) ? dist_note_tets(P->w, ctx->newt, ctx->nnew) : I2M_OK;
 }
@@ -194,18 +226,11 @@ static i2m_dt_status_t take_out(perturb_t *P, uint32_t v)
 {
   i2m_refine_t *r = P->w->r;
   i2m_dt_ctx_t *ctx = &P->w->ctx;
-  const bool surface = r->dt->vkind[v] == I2M_VK_SURFACE;
-  const uint32_t tag = surface ? r->surf.tag[v] : 0;
-  const bool near = v < r->freev.cap_next && r->freev.tag[v] == VGRID_MEMBER;
-  if (surface) vgrid_remove(&r->surf, r->dt, v);
-  if (near) vgrid_remove(&r->freev, r->dt, v);
+  const vplace_t g = place_of(r, v);
+  grids_out(r, v, g);
   const i2m_dt_status_t st = i2m_dt_remove(ctx, v);
   i2m_dt_unlock_all(ctx);
-  if (st != I2M_DT_OK) {
-    if (surface && vgrid_insert(&r->surf, r->dt, v, tag) != I2M_OK) return I2M_DT_FAILED;
-    if (near && vgrid_insert(&r->freev, r->dt, v, VGRID_MEMBER) != I2M_OK) return I2M_DT_FAILED;
-    return st;
-  }
+  if (st != I2M_DT_OK) return grids_in(r, v, g) == I2M_OK ? st : I2M_DT_FAILED;
   return label_created(P) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
 }
 
@@ -242,11 +267,10 @@ static uint32_t locate_near(const i2m_refine_worker_t *w, uint32_t t, const doub
   return I2M_DT_NONE;
 }
 
-/* Puts a vertex (global id gid, kind, patch tag for a surface vertex, one of R7's candidates
- * when near) at p, which a tet near tet start holds; *vout is its slot.  ROLLBACK when p lies
- * beyond the walk's reach. */
-static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, uint8_t kind, uint32_t tag, bool near,
-                              uint32_t start, uint32_t *vout)
+/* Puts a vertex (global id gid, kind, its place in the grids) at p, which a tet near tet start
+ * holds; *vout is its slot.  ROLLBACK when p lies beyond the walk's reach. */
+static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, uint8_t kind, vplace_t g, uint32_t start,
+                              uint32_t *vout)
 {
   i2m_refine_t *r = P->w->r;
   i2m_dt_ctx_t *ctx = &P->w->ctx;
@@ -255,8 +279,7 @@ static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, u
   i2m_dt_status_t st = i2m_dt_insert(ctx, p, gid, kind, seed, I2M_DT_NONE, vout);
   i2m_dt_unlock_all(ctx);
   if (st != I2M_DT_OK) return st;
-  if (kind == I2M_VK_SURFACE && vgrid_insert(&r->surf, r->dt, *vout, tag) != I2M_OK) return I2M_DT_FAILED;
-  if (near && vgrid_insert(&r->freev, r->dt, *vout, VGRID_MEMBER) != I2M_OK) return I2M_DT_FAILED;
+  if (grids_in(r, *vout, g) != I2M_OK) return I2M_DT_FAILED;
   if (dist_tracking(r) && dist_note_vertex(P->w, *vout) != I2M_OK) return I2M_DT_FAILED;
   return label_created(P) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
 }
@@ -295,21 +318,6 @@ static i2m_err_t note_touched(perturb_t *P)
 
 static void set_xyz(i2m_dt_t *dt, uint32_t v, const double x[3]) { memcpy(dt->xyzw + 4 * (size_t)v, x, 3 * sizeof *x); }
 
-/* Vertex v out of the grids that place it (the surface vertices', R7's) or back in. */
-static i2m_err_t grids_out(i2m_refine_t *r, uint32_t v, bool surface, bool near)
-{
-  if (surface) vgrid_remove(&r->surf, r->dt, v);
-  if (near) vgrid_remove(&r->freev, r->dt, v);
-  return I2M_OK;
-}
-
-static i2m_err_t grids_in(i2m_refine_t *r, uint32_t v, bool surface, uint32_t tag, bool near)
-{
-  if (surface) I2M_CALL(vgrid_insert(&r->surf, r->dt, v, tag));
-  if (near) I2M_CALL(vgrid_insert(&r->freev, r->dt, v, VGRID_MEMBER));
-  return I2M_OK;
-}
-
 /* Do v's tets (the changed list) lie in the same tiles with v at x0 as where it is now?  (The
  * tiles' lists and the ranks' submeshes file a tet under its centroid's tile.) */
 static bool same_tiles(perturb_t *P, uint32_t v, const double x0[3])
@@ -330,17 +338,12 @@ static bool same_tiles(perturb_t *P, uint32_t v, const double x0[3])
  * (i2m_dt_move) and in the same tiles: they are labelled again and judged as a removal and a
  * reinsertion's would be (the same tets), and undone by moving v back.  MOVE_NOT_IN_PLACE when
  * the tets would change: nothing changed, the caller removes and reinserts. */
-static int move_in_place(perturb_t *P, uint32_t v, const double p[3], double floor_cos)
+static int move_in_place(perturb_t *P, uint32_t v, const double x0[3], const double p[3], vplace_t g, double floor_cos)
 {
   i2m_refine_t *r = P->w->r;
   i2m_dt_t *dt = r->dt;
   i2m_dt_ctx_t *ctx = &P->w->ctx;
-  const double *x = i2m_dt_xyz(dt, v);
-  const double x0[3] = {x[0], x[1], x[2]};
-  const bool surface = dt->vkind[v] == I2M_VK_SURFACE;
-  const uint32_t tag = surface ? r->surf.tag[v] : 0;
-  const bool near = v < r->freev.cap_next && r->freev.tag[v] == VGRID_MEMBER;
-  grids_out(r, v, surface, near);
+  grids_out(r, v, g);
   const i2m_dt_status_t st = i2m_dt_move(ctx, v, p);
   i2m_dt_unlock_all(ctx);
   bool moved = st == I2M_DT_OK;
@@ -355,7 +358,7 @@ static int move_in_place(perturb_t *P, uint32_t v, const double p[3], double flo
       moved = false;
     }
   }
-  if (grids_in(r, v, surface, tag, near) != I2M_OK) return MOVE_ERROR;
+  if (grids_in(r, v, g) != I2M_OK) return MOVE_ERROR;
   if (!moved) {
     P->nchanged = 0;
     return MOVE_NOT_IN_PLACE;
@@ -363,11 +366,8 @@ static int move_in_place(perturb_t *P, uint32_t v, const double p[3], double flo
   P->tried++;
   P->in_place++;
   for (uint32_t k = 0; k < P->nchanged; k++) {
-    const uint32_t t = P->changed[k];
-    tet_geom_t g;
-    P->saved[2 * k] = tinfo(dt, t)->label;
-    tet_geom(r, t, PROBE_NEW, &g);
-    tinfo(dt, t)->label = (uint16_t)g.label;
+    P->saved[2 * k] = tinfo(dt, P->changed[k])->label;
+    label_tet(r, P->changed[k]);
   }
   const int ok = changed_ok(P, floor_cos);
   if (ok > 0) {
@@ -375,9 +375,9 @@ static int move_in_place(perturb_t *P, uint32_t v, const double p[3], double flo
     P->in_place_kept++;
     return note_touched(P) == I2M_OK ? MOVE_KEPT : MOVE_ERROR;
   }
-  grids_out(r, v, surface, near); /* back where it was: the same tets, their old labels */
+  grids_out(r, v, g); /* back where it was: the same tets, their old labels */
   set_xyz(dt, v, x0);
-  if (grids_in(r, v, surface, tag, near) != I2M_OK) return MOVE_ERROR;
+  if (grids_in(r, v, g) != I2M_OK) return MOVE_ERROR;
   for (uint32_t k = 0; k < P->nchanged; k++) tinfo(dt, P->changed[k])->label = (uint16_t)P->saved[2 * k];
   P->nchanged = 0;
   return ok < 0 ? MOVE_DEFERRED : MOVE_UNDONE;
@@ -395,9 +395,8 @@ static int try_move(perturb_t *P, uint32_t *v, const double p[3], double floor_c
   const double x0[3] = {x[0], x[1], x[2]};
   const i2m_gidx_t gid = i2m_dt_gid(dt, *v);
   const uint8_t kind = dt->vkind[*v];
-  const uint32_t tag = kind == I2M_VK_SURFACE ? r->surf.tag[*v] : 0;
-  const bool near = *v < r->freev.cap_next && r->freev.tag[*v] == VGRID_MEMBER;
-  const int in_place = move_in_place(P, *v, p, floor_cos); /* (a fraction of the cost, when it can) */
+  const vplace_t g = place_of(r, *v);
+  const int in_place = move_in_place(P, *v, x0, p, g, floor_cos); /* (a fraction of the cost, when it can) */
   if (in_place != MOVE_NOT_IN_PLACE) return in_place;
   P->nchanged = 0;
   P->tried++;
@@ -405,7 +404,7 @@ static int try_move(perturb_t *P, uint32_t *v, const double p[3], double floor_c
   if (st == I2M_DT_FAILED) return MOVE_ERROR;
   if (st != I2M_DT_OK) return st == I2M_DT_ROLLBACK || st == I2M_DT_FULL ? MOVE_DEFERRED : MOVE_UNDONE; /* nothing changed */
   uint32_t start = P->w->ctx.newt[0], moved;
-  st = put_in(P, p, gid, kind, tag, near, start, &moved);
+  st = put_in(P, p, gid, kind, g, start, &moved);
   if (st == I2M_DT_FAILED) return MOVE_ERROR;
   int verdict = MOVE_UNDONE;
   if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) verdict = MOVE_DEFERRED;
@@ -424,7 +423,7 @@ static int try_move(perturb_t *P, uint32_t *v, const double p[3], double floor_c
     if (take_out(P, moved) != I2M_DT_OK) return MOVE_ERROR;
     start = P->w->ctx.newt[0];
   }
-  if (put_in(P, x0, gid, kind, tag, near, start, v) != I2M_DT_OK) return MOVE_ERROR;
+  if (put_in(P, x0, gid, kind, g, start, v) != I2M_DT_OK) return MOVE_ERROR;
   return note_touched(P) == I2M_OK ? verdict : MOVE_ERROR;
 }
 

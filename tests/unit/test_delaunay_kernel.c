@@ -197,15 +197,50 @@ static void test_perturbed_grid(void)
   free(xyz);
 }
 
+/* The tetrahedralization of n points with global ids 8 + i (*gid), their slots in *vid. */
+static i2m_dt_t *build_with_ids(const double *xyz, size_t n, uint64_t seed, int64_t **gid, uint32_t **vid)
+{
+  *gid = malloc(n * sizeof **gid);
+  *vid = malloc(n * sizeof **vid);
+  for (size_t i = 0; i < n; i++) (*gid)[i] = 8 + (int64_t)i;
+  i2m_dt_t *dt = make_dt(-64, 128, (uint32_t)n);
+  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, seed, *vid, NULL) == I2M_OK);
+  return dt;
+}
+
+/* *dt (destroyed here) must be valid and hold the very tets of the tetrahedralization built
+ * anew, point by point, of the points not dropped (drop NULL: all), with their global ids. */
+static void assert_as_built_anew(i2m_dt_t **dt, const double *xyz, const int64_t *gid, const char *drop, size_t n)
+{
+  assert_valid(*dt);
+  int64_t c1, c2;
+  const uint64_t s1 = i2m_dt_checksum(*dt, &c1);
+  i2m_dt_destroy(dt);
+  double *rest = malloc(3 * n * sizeof *rest + 1);
+  int64_t *rgid = malloc(n * sizeof *rgid + 1);
+  size_t m = 0;
+  for (size_t i = 0; i < n; i++)
+    if (!drop || !drop[i]) {
+      memcpy(rest + 3 * m, xyz + 3 * i, 3 * sizeof *rest);
+      rgid[m++] = gid[i];
+    }
+  i2m_dt_t *anew = make_dt(-64, 128, (uint32_t)m);
+  insert_in_order(anew, rest, rgid, NULL, m);
+  const uint64_t s2 = i2m_dt_checksum(anew, &c2);
+  i2m_dt_destroy(&anew);
+  CU_ASSERT_EQUAL(c1, c2);
+  CU_ASSERT_EQUAL(s1, s2);
+  free(rest);
+  free(rgid);
+}
+
 /* Insert a set, remove a random subset; the result must be valid, Delaunay, and identical
  * (checksum) to the tetrahedralization of the remaining points built from scratch. */
 static void removal_case(double *xyz, size_t n, double frac, uint64_t seed)
 {
-  int64_t *gid = malloc(n * sizeof *gid);
-  uint32_t *vid = malloc(n * sizeof *vid);
-  for (size_t i = 0; i < n; i++) gid[i] = 8 + (int64_t)i;
-  i2m_dt_t *dt = make_dt(-64, 128, (uint32_t)n);
-  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, seed, vid, NULL) == I2M_OK);
+  int64_t *gid;
+  uint32_t *vid;
+  i2m_dt_t *dt = build_with_ids(xyz, n, seed, &gid, &vid);
   i2m_dt_ctx_t ctx;
   CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
   char *removed = calloc(n, 1);
@@ -227,27 +262,7 @@ static void removal_case(double *xyz, size_t n, double frac, uint64_t seed)
     }
   CU_ASSERT_EQUAL(i2m_dt_remove(&ctx, 3), I2M_DT_STALE);
   i2m_dt_ctx_free(&ctx);
-  assert_valid(dt);
-  int64_t c1, c2;
-  uint64_t s1 = i2m_dt_checksum(dt, &c1);
-  i2m_dt_destroy(&dt);
-
-  double *rest = malloc(3 * n * sizeof *rest);
-  int64_t *rgid = malloc(n * sizeof *rgid);
-  size_t m = 0;
-  for (size_t i = 0; i < n; i++)
-    if (!removed[i]) {
-      memcpy(rest + 3 * m, xyz + 3 * i, 3 * sizeof *rest);
-      rgid[m++] = gid[i];
-    }
-  dt = make_dt(-64, 128, (uint32_t)m);
-  insert_in_order(dt, rest, rgid, NULL, m);
-  uint64_t s2 = i2m_dt_checksum(dt, &c2);
-  i2m_dt_destroy(&dt);
-  CU_ASSERT_EQUAL(c1, c2);
-  CU_ASSERT_EQUAL(s1, s2);
-  free(rest);
-  free(rgid);
+  assert_as_built_anew(&dt, xyz, gid, removed, n);
   free(removed);
   free(gid);
   free(vid);
@@ -277,12 +292,10 @@ static void test_remove_lattice(void)
  * and by reinsertion go to counts[2]. */
 static void move_case(double *xyz, size_t n, size_t nmoves, double step, bool axis, uint64_t seed, size_t counts[2])
 {
-  int64_t *gid = malloc(n * sizeof *gid);
-  uint32_t *vid = malloc(n * sizeof *vid);
+  int64_t *gid;
+  uint32_t *vid;
+  i2m_dt_t *dt = build_with_ids(xyz, n, seed, &gid, &vid);
   char *moved = calloc(n, 1);
-  for (size_t i = 0; i < n; i++) gid[i] = 8 + (int64_t)i;
-  i2m_dt_t *dt = make_dt(-64, 128, (uint32_t)n);
-  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, seed, vid, NULL) == I2M_OK);
   i2m_dt_ctx_t ctx;
   CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
   rng_state ^= seed * 0x9E3779B97F4A7C15ull;
@@ -311,16 +324,7 @@ static void move_case(double *xyz, size_t n, size_t nmoves, double step, bool ax
   i2m_dt_ctx_free(&ctx);
   counts[0] = in_place;
   counts[1] = reinserted;
-  assert_valid(dt);
-  int64_t c1, c2;
-  const uint64_t s1 = i2m_dt_checksum(dt, &c1);
-  i2m_dt_destroy(&dt);
-  dt = make_dt(-64, 128, (uint32_t)n);
-  insert_in_order(dt, xyz, gid, NULL, n);
-  const uint64_t s2 = i2m_dt_checksum(dt, &c2);
-  i2m_dt_destroy(&dt);
-  CU_ASSERT_EQUAL(c1, c2);
-  CU_ASSERT_EQUAL(s1, s2);
+  assert_as_built_anew(&dt, xyz, gid, NULL, n);
   free(moved);
   free(gid);
   free(vid);

@@ -149,6 +149,8 @@ typedef struct i2m_dt_ctx {
   struct i2m_dt_edge *etab; uint32_t ecap, stamp; /* edge table (adjacency of new tets) */
   i2m_dt_slots_t slots;    /**< the slots this context may hand out */
   struct i2m_dt_removal *rm; /**< owned: scratch for vertex removal, created on first use */
+  bool journal;            /**< i2m_dt_insert keeps what it replaces, for i2m_dt_undo_insert */
+  struct i2m_dt_journal *jr; /**< owned: that record, created on first use */
   /* statistics */
   int64_t n_insert, n_remove, n_rollback, n_created, n_killed, n_walk_steps;
 } i2m_dt_ctx_t;
@@ -205,6 +207,14 @@ void i2m_dt_ctx_flush(i2m_dt_ctx_t *ctx);
  *  classify the new tets safely).  On any other status nothing changed and no lock is held. */
 i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t gid, uint8_t kind,
                               uint32_t seed, uint32_t seed_meta, uint32_t *vout);
+
+/** Undoes the last insertion of a context whose `journal` was set (sequential use, or a zone's;
+ *  no other operation of the context in between): its vertex and tets go, and the tets its
+ *  cavity held come back in their slots, with their generations and payloads, so that every
+ *  reference to them holds again, and the slots the insertion took go back to the context
+ *  (where they came from, when it can tell).  Far cheaper than removing the vertex, which
+ *  gives the same triangulation in other slots. */
+i2m_err_t i2m_dt_undo_insert(i2m_dt_ctx_t *ctx);
 
 /** Finds a tet containing p by a visibility walk from @p start (sequential use, or a zone's
  *  with a block: I2M_DT_NONE when the walk would leave the block; faces of another rank's

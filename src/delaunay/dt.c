@@ -189,6 +189,7 @@ void i2m_dt_ctx_free(i2m_dt_ctx_t *ctx)
   i2m_free(&ctx->slots.pool);
   i2m_free(&ctx->slots.vpool);
   removal_free(&ctx->rm);
+  journal_free(&ctx->jr);
   memset(ctx, 0, sizeof *ctx);
 }
 

@@ -162,5 +162,23 @@ static inline void ctx_edge_link(i2m_dt_ctx_t *ctx, uint32_t t, uint32_t ip, uin
 
 /* Vertex removal scratch (dt_remove.c). */
 void removal_free(struct i2m_dt_removal **rm);
+/* The record of a journaled insertion (i2m_dt_undo_insert). */
+struct i2m_dt_journal {
+  bool valid;                   /* an insertion to undo */
+  uint32_t nc, nb, v;           /* its cavity's tets, its new tets, its vertex */
+  uint32_t *slot, cap_c;        /* [nc] the cavity's slots, in the order of ctx->cav */
+  uint32_t *tv, *tn, *meta;     /* [nc][4], [nc][4], [nc] their records */
+  unsigned char *pay;           /* [nc][pay_size] */
+  i2m_dt_bface_t *bnd;          /* [nb] the boundary faces */
+  uint32_t *newt, cap_b;        /* [nb] the new tets */
+  uint32_t npool, fresh_next, nvpool, vfresh_next; /* the context's slots before */
+};
+
+void journal_free(struct i2m_dt_journal **jp);
+/* Any operation but a journaled insertion leaves nothing to undo. */
+static inline void journal_forget(i2m_dt_ctx_t *ctx)
+{
+  if (ctx->jr) ctx->jr->valid = false;
+}
 
 #endif

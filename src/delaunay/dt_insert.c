@@ -543,6 +543,138 @@ static uint32_t new_vertex(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid, u
   return v;
 }
 
+/* ---- the journal of an insertion (i2m_dt_undo_insert) ---- */
+
+void journal_free(struct i2m_dt_journal **jp)
+{
+  struct i2m_dt_journal *j = *jp;
+  if (!j) return;
+  i2m_free(&j->slot);
+  i2m_free(&j->tv);
+  i2m_free(&j->tn);
+  i2m_free(&j->meta);
+  i2m_free(&j->pay);
+  i2m_free(&j->bnd);
+  i2m_free(&j->newt);
+  i2m_free(jp);
+}
+
+static i2m_err_t journal_room(i2m_dt_ctx_t *ctx, uint32_t nc, uint32_t nb)
+{
+  if (!ctx->jr) I2M_CALL(i2m_calloc(1, sizeof *ctx->jr, &ctx->jr));
+  struct i2m_dt_journal *j = ctx->jr;
+  const size_t pay = ctx->dt->pay_size;
+  if (nc > j->cap_c) {
+    const uint32_t c = nc + nc / 2 + 64;
+    I2M_CALL(i2m_realloc(c, sizeof *j->slot, &j->slot));
+    I2M_CALL(i2m_realloc(4 * (size_t)c, sizeof *j->tv, &j->tv));
+    I2M_CALL(i2m_realloc(4 * (size_t)c, sizeof *j->tn, &j->tn));
+    I2M_CALL(i2m_realloc(c, sizeof *j->meta, &j->meta));
+    if (pay) I2M_CALL(i2m_realloc((size_t)c * pay, 1, &j->pay));
+    j->cap_c = c;
+  }
+  if (nb > j->cap_b) {
+    const uint32_t c = nb + nb / 2 + 64;
+    I2M_CALL(i2m_realloc(c, sizeof *j->bnd, &j->bnd));
+    I2M_CALL(i2m_realloc(c, sizeof *j->newt, &j->newt));
+    j->cap_b = c;
+  }
+  return I2M_OK;
+}
+
+/* Before the refill: the cavity's tets as they are, and the context's slots. */
+static void journal_keep(i2m_dt_ctx_t *ctx)
+{
+  const i2m_dt_t *dt = ctx->dt;
+  struct i2m_dt_journal *j = ctx->jr;
+  const size_t pay = dt->pay_size;
+  j->nc = ctx->ncav;
+  j->nb = ctx->nbnd;
+  for (uint32_t k = 0; k < j->nc; k++) {
+    const uint32_t t = ctx->cav[k];
+    j->slot[k] = t;
+    memcpy(j->tv + 4 * (size_t)k, dt->tv + 4 * (size_t)t, 4 * sizeof *j->tv);
+    memcpy(j->tn + 4 * (size_t)k, dt->tn + 4 * (size_t)t, 4 * sizeof *j->tn);
+    j->meta[k] = i2m_dt_meta(dt, t) & ~I2M_TM_MARK; /* (the search marked it) */
+    if (pay) memcpy(j->pay + k * pay, dt->tpay + (size_t)t * pay, pay);
+  }
+  memcpy(j->bnd, ctx->bnd, j->nb * sizeof *j->bnd);
+  j->npool = ctx->slots.npool;
+  j->fresh_next = ctx->slots.fresh_next;
+  j->nvpool = ctx->slots.nvpool;
+  j->vfresh_next = ctx->slots.vfresh_next;
+}
+
+/* A slot the insertion took, back to where it came from (the context's pool or fresh range,
+ * as the saved counts tell), else into the pool. */
+static i2m_err_t tet_slot_back(i2m_dt_ctx_t *ctx, const struct i2m_dt_journal *j, uint32_t t)
+{
+  i2m_dt_slots_t *s = &ctx->slots;
+  if (s->fresh_next > j->fresh_next && t == s->fresh_next - 1) {
+    s->fresh_next--;
+    return I2M_OK;
+  }
+  if (s->npool < j->npool && s->pool[s->npool] == t) {
+    s->npool++;
+    return I2M_OK;
+  }
+  return ctx_pool_push(ctx, t);
+}
+
+static i2m_err_t vertex_slot_back(i2m_dt_ctx_t *ctx, const struct i2m_dt_journal *j, uint32_t v)
+{
+  i2m_dt_slots_t *s = &ctx->slots;
+  if (s->vfresh_next == j->vfresh_next + 1 && v == j->vfresh_next) {
+    s->vfresh_next--;
+    return I2M_OK;
+  }
+  if (s->nvpool + 1 == j->nvpool && s->vpool[s->nvpool] == v) {
+    s->nvpool++;
+    return I2M_OK;
+  }
+  return ctx_vpool_push(ctx, v);
+}
+
+i2m_err_t i2m_dt_undo_insert(i2m_dt_ctx_t *ctx)
+{
+  struct i2m_dt_journal *j = ctx->jr;
+  I2M_CHECK(j && j->valid && !ctx->locking, I2M_ERR_INTERNAL, "i2m_dt_undo_insert: no journaled insertion to undo");
+  i2m_dt_t *dt = ctx->dt;
+  const size_t pay = dt->pay_size;
+  const uint32_t reused = j->nb < j->nc ? j->nb : j->nc;
+  j->valid = false;
+  for (uint32_t k = j->nb; k-- > reused;) { /* new tets beyond the cavity's slots: dead again */
+    const uint32_t t = j->newt[k];
+    meta_store(dt, t, meta_killed(i2m_dt_meta(dt, t)));
+    I2M_CALL(tet_slot_back(ctx, j, t));
+  }
+  if (j->nc > j->nb) { /* the cavity's slots left over went onto the pool: taken back */
+    I2M_CHECK(ctx->slots.npool >= j->nc - j->nb && ctx->slots.pool[ctx->slots.npool - 1] == j->slot[j->nc - 1],
+              I2M_ERR_INTERNAL, "i2m_dt_undo_insert: the pool changed since the insertion");
+    ctx->slots.npool -= j->nc - j->nb;
+  }
+  for (uint32_t k = 0; k < j->nc; k++) { /* the cavity's tets, as they were */
+    const uint32_t t = j->slot[k];
+    memcpy(dt->tv + 4 * (size_t)t, j->tv + 4 * (size_t)k, 4 * sizeof *j->tv);
+    memcpy(dt->tn + 4 * (size_t)t, j->tn + 4 * (size_t)k, 4 * sizeof *j->tn);
+    if (pay) memcpy(dt->tpay + (size_t)t * pay, j->pay + k * pay, pay);
+    meta_store(dt, t, j->meta[k]);
+  }
+  for (uint32_t k = 0; k < j->nb; k++) { /* the tets outside see them again */
+    const i2m_dt_bface_t b = j->bnd[k];
+    if (b.out < I2M_DT_REMOTE) dt->tn[b.out] = 4 * j->slot[b.ki >> 2] + (b.ki & 3);
+  }
+  for (uint32_t k = 0; k < j->nc; k++)
+    for (int i = 0; i < 4; i++) dt->vtet[j->tv[4 * (size_t)k + i]] = j->slot[k];
+  dt->vkind[j->v] = I2M_VK_DEAD;
+  I2M_CALL(vertex_slot_back(ctx, j, j->v));
+  ctx->nnew = 0;
+  ctx->n_insert--;
+  ctx->n_created -= j->nb;
+  ctx->n_killed -= j->nc;
+  return I2M_OK;
+}
+
 /* Replaces the cavity by the tets joining p to its boundary faces.  Cavity slots are reused
  * first; the rest of the cavity's slots go to the context's pool. */
 static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_t gid, uint8_t kind, uint32_t *vout)
@@ -552,6 +684,10 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   if (!fill_room(ctx, nb, nc)) return I2M_DT_FULL;
   const bool direct = edge_table_ready(ctx, nb);
   if (!direct && ctx_edges_begin(ctx, 3 * nb) != I2M_OK) return I2M_DT_FULL;
+  if (ctx->journal) {
+    if (journal_room(ctx, nc, nb) != I2M_OK) return I2M_DT_FULL;
+    journal_keep(ctx);
+  }
   const uint32_t v = new_vertex(ctx, p, gid, kind);
   if (v == I2M_DT_NONE) return I2M_DT_FULL;
   const uint32_t reused = nb < nc ? nb : nc;
@@ -575,6 +711,11 @@ static i2m_dt_status_t cavity_fill(i2m_dt_ctx_t *ctx, const double *p, i2m_gidx_
   ctx->n_insert++;
   ctx->n_created += nb;
   ctx->n_killed += nc;
+  if (ctx->journal) {
+    memcpy(ctx->jr->newt, ctx->newt, nb * sizeof *ctx->newt);
+    ctx->jr->v = v;
+    ctx->jr->valid = true;
+  }
   *vout = v;
   return I2M_DT_OK;
 }
@@ -615,6 +756,7 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
 {
   I2M_CHECK_ABORT(ctx->locking || ctx->nheld == 0, "i2m_dt_insert: the previous operation's vertices are still held");
   ctx->ncav = ctx->nbnd = ctx->nnew = 0;
+  journal_forget(ctx);
   double snapped[3];
   p = i2m_dt_snap(ctx->dt, p, snapped);
   if (ctx->zone && !i2m_box_holds(ctx->zone, p)) {

@@ -359,6 +359,7 @@ i2m_dt_status_t i2m_dt_remove(i2m_dt_ctx_t *ctx, uint32_t v)
 {
   i2m_dt_t *dt = ctx->dt;
   ctx->nnew = 0;
+  journal_forget(ctx);
   if (v < 8 || v >= i2m_dt_nverts_slots(dt) || dt->vkind[v] == I2M_VK_DEAD || dt->vkind[v] == I2M_VK_BOX)
     return I2M_DT_STALE;
   if (!ctx->rm && removal_create(dt, &ctx->rm) != I2M_OK) return I2M_DT_FULL;
@@ -427,6 +428,7 @@ i2m_dt_status_t i2m_dt_move(i2m_dt_ctx_t *ctx, uint32_t v, const double p_in[3])
 {
   i2m_dt_t *dt = ctx->dt;
   ctx->nnew = 0;
+  journal_forget(ctx);
   if (v < 8 || v >= i2m_dt_nverts_slots(dt) || dt->vkind[v] == I2M_VK_DEAD || dt->vkind[v] == I2M_VK_BOX)
     return I2M_DT_STALE;
   double snapped[3];

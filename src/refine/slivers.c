@@ -46,7 +46,10 @@ typedef struct {
 typedef struct {
   i2m_refine_worker_t *w; /* its worker: kernel context and rule evaluation */
   uint32_t *star, nstar, cap_star;
+  uint32_t *seen, *seen_stamp, cap_seen, stamp; /* star_of's set of the tets found (open addressing) */
   uint32_t *changed, nchanged, cap_changed;
+  double *hole_cos;                         /* [cap_changed] a removal's tets' largest dihedral cosines */
+  uint32_t *hole_meta;                      /* [cap_changed] and generations */
   uint32_t *touched, ntouched, cap_touched; /* tets the moves of this round made */
   sliver_list_t deferred;                   /* slivers a zone could not hold */
   uint32_t *saved, cap_saved;               /* an in-place move's tets: labels and tiles before */
@@ -148,13 +151,48 @@ static int cmp_sliver(const void *x, const void *y)
 
 /* ---- one move ---- */
 
+/* Files tet t in star_of's set; false when it was there. */
+static bool seen_add(perturb_t *P, uint32_t t)
+{
+  const uint32_t mask = P->cap_seen - 1;
+  for (uint32_t h = (t * 0x9E3779B1u) >> 7 & mask;; h = (h + 1) & mask) {
+    if (P->seen_stamp[h] != P->stamp) {
+      P->seen_stamp[h] = P->stamp;
+      P->seen[h] = t;
+      return true;
+    }
+    if (P->seen[h] == t) return false;
+  }
+}
+
+/* An empty set with room for n tets at half load. */
+static i2m_err_t seen_clear(perturb_t *P, uint32_t n)
+{
+  if (2 * n > P->cap_seen) {
+    uint32_t c = P->cap_seen ? P->cap_seen : 256;
+    while (c < 2 * n) c *= 2;
+    I2M_CALL(i2m_realloc(c, sizeof *P->seen, &P->seen));
+    I2M_CALL(i2m_realloc(c, sizeof *P->seen_stamp, &P->seen_stamp));
+    memset(P->seen_stamp, 0, c * sizeof *P->seen_stamp);
+    P->cap_seen = c;
+    P->stamp = 0;
+  }
+  if (++P->stamp == 0) { /* (wrapped: every entry would look current) */
+    memset(P->seen_stamp, 0, P->cap_seen * sizeof *P->seen_stamp);
+    P->stamp = 1;
+  }
+  return I2M_OK;
+}
+
 /* The tets incident to vertex v (breadth-first across the faces that hold v). */
 static i2m_err_t star_of(perturb_t *P, uint32_t v)
 {
   const i2m_dt_t *dt = P->w->r->dt;
   P->nstar = 0;
   I2M_CALL(grow_list(&P->star, &P->cap_star, 1));
+  I2M_CALL(seen_clear(P, 64));
   P->star[P->nstar++] = dt->vtet[v];
+  seen_add(P, dt->vtet[v]);
   for (uint32_t k = 0; k < P->nstar; k++) {
     const uint32_t t = P->star[k], *tv = dt->tv + 4 * (size_t)t;
     for (uint32_t i = 0; i < 4; i++) {
@@ -162,9 +200,11 @@ static i2m_err_t star_of(perturb_t *P, uint32_t v)
       const uint32_t n = dt->tn[4 * (size_t)t + i];
       if (n >= I2M_DT_REMOTE) continue; /* (never for a face that holds v: see take_out) */
       const uint32_t u = n >> 2;
-      bool seen = false;
-      for (uint32_t q = 0; q < P->nstar && !seen; q++) seen = P->star[q] == u;
-      if (seen) continue;
+      if (2 * (P->nstar + 1) > P->cap_seen) { /* (a large star: the set grows, refilled) */
+        I2M_CALL(seen_clear(P, P->nstar + 1));
+        for (uint32_t q = 0; q < P->nstar; q++) seen_add(P, P->star[q]);
+      }
+      if (!seen_add(P, u)) continue;
       I2M_CALL(grow_list(&P->star, &P->cap_star, P->nstar + 1));
       P->star[P->nstar++] = u;
     }
@@ -207,21 +247,22 @@ static i2m_err_t grids_in(i2m_refine_t *r, uint32_t v, vplace_t g)
   return I2M_OK;
 }
 
-/* Labels the tets the last kernel operation created (the rules compare neighbours' labels)
- * and appends them to the changed list. */
-static i2m_err_t label_created(perturb_t *P)
+/* Appends the tets the last kernel operation created to the changed list, labelled (the
+ * rules compare neighbours' labels) unless the caller labels them later (changed_ok). */
+static i2m_err_t label_created(perturb_t *P, bool label)
 {
   i2m_refine_t *r = P->w->r;
   const i2m_dt_ctx_t *ctx = &P->w->ctx;
   I2M_CALL(grow_list(&P->changed, &P->cap_changed, P->nchanged + ctx->nnew));
   for (uint32_t k = 0; k < ctx->nnew; k++) {
-    label_tet(r, ctx->newt[k]);
+    if (label) label_tet(r, ctx->newt[k]);
     P->changed[P->nchanged++] = ctx->newt[k];
   }
   return dist_tracking(r) ? dist_note_tets(P->w, ctx->newt, ctx->nnew) : I2M_OK;
 }
 
-/* Takes vertex v out of the mesh (and out of its grid: the surface vertices', or R7's). */
+/* Takes vertex v out of the mesh (and out of its grid: the surface vertices', or R7's); its
+ * hole's tets join the changed list unlabelled (a trial's changed_ok labels those left). */
 static i2m_dt_status_t take_out(perturb_t *P, uint32_t v)
 {
   i2m_refine_t *r = P->w->r;
@@ -231,7 +272,7 @@ static i2m_dt_status_t take_out(perturb_t *P, uint32_t v)
   const i2m_dt_status_t st = i2m_dt_remove(ctx, v);
   i2m_dt_unlock_all(ctx);
   if (st != I2M_DT_OK) return grids_in(r, v, g) == I2M_OK ? st : I2M_DT_FAILED;
-  return label_created(P) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
+  return label_created(P, false) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
 }
 
 /* Does the worker's zone (if any) hold every vertex of the face of tet t opposite i?  Only
@@ -268,9 +309,10 @@ static uint32_t locate_near(const i2m_refine_worker_t *w, uint32_t t, const doub
 }
 
 /* Puts a vertex (global id gid, kind, its place in the grids) at p, which a tet near tet start
- * holds; *vout is its slot.  ROLLBACK when p lies beyond the walk's reach. */
+ * holds; *vout is its slot; its tets labelled unless `label` is false.  ROLLBACK when p lies
+ * beyond the walk's reach. */
 static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, uint8_t kind, vplace_t g, uint32_t start,
-                              uint32_t *vout)
+                              bool label, uint32_t *vout)
 {
   i2m_refine_t *r = P->w->r;
   i2m_dt_ctx_t *ctx = &P->w->ctx;
@@ -281,20 +323,25 @@ static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, u
   if (st != I2M_DT_OK) return st;
   if (grids_in(r, *vout, g) != I2M_OK) return I2M_DT_FAILED;
   if (dist_tracking(r) && dist_note_vertex(P->w, *vout) != I2M_OK) return I2M_DT_FAILED;
-  return label_created(P) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
+  return label_created(P, label) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
 }
 
 /* Do the changed tets pass every rule, with their smallest dihedral angle above the star's
  * worst (their largest cosine below floor_cos)?  1 yes, 0 no, -1 the rules cannot tell
- * inside the zone. */
-static int changed_ok(perturb_t *P, double floor_cos)
+ * inside the zone.  The first `cached` changed tets' cosines are P->hole_cos's (a removal's
+ * tets, the same for every trial of its vertex, unless the trial took their slots).  The changed tets from `unlabelled` on get
+ * their labels once the angles pass (most trials fail on the angles, and need none). */
+static int changed_ok(perturb_t *P, double floor_cos, uint32_t cached, uint32_t unlabelled)
 {
   const i2m_dt_t *dt = P->w->r->dt;
   for (uint32_t k = 0; k < P->nchanged; k++) {
     const uint32_t t = P->changed[k];
     if (!i2m_dt_alive(dt, t)) continue; /* (a removal's tet the insertion took again) */
-    if (tet_max_cosine(dt, t) >= floor_cos) return 0;
+    if (k < cached && i2m_dt_meta(dt, t) != P->hole_meta[k]) continue; /* (its slot, a new tet's: checked below) */
+    if ((k < cached ? P->hole_cos[k] : tet_max_cosine(dt, t)) >= floor_cos) return 0;
   }
+  for (uint32_t k = unlabelled; k < P->nchanged; k++)
+    if (i2m_dt_alive(dt, P->changed[k])) label_tet(P->w->r, P->changed[k]);
   for (uint32_t k = 0; k < P->nchanged; k++) {
     const uint32_t t = P->changed[k];
     if (!i2m_dt_alive(dt, t)) continue;
@@ -369,7 +416,7 @@ static int move_in_place(perturb_t *P, uint32_t v, const double x0[3], const dou
     P->saved[2 * k] = tinfo(dt, P->changed[k])->label;
     label_tet(r, P->changed[k]);
   }
-  const int ok = changed_ok(P, floor_cos);
+  const int ok = changed_ok(P, floor_cos, 0, P->nchanged);
   if (ok > 0) {
     P->kept++;
     P->in_place_kept++;
@@ -383,48 +430,106 @@ static int move_in_place(perturb_t *P, uint32_t v, const double x0[3], const dou
   return ok < 0 ? MOVE_DEFERRED : MOVE_UNDONE;
 }
 
-/* One attempt: vertex *v to p (the same kind, global id and patch).  Kept when the changed
- * tets pass; otherwise the vertex goes back to where it was (the same triangulation: its
- * star was the zone's, so it fits again, in slots the removal gave back).  *v is the
- * vertex's slot afterwards.  A MOVE_* result. */
-static int try_move(perturb_t *P, uint32_t *v, const double p[3], double floor_cos)
+/* A vertex whose moves are being tried.  While it is in the mesh each target is tried in
+ * place (when its tets stay); the first target that cannot be takes the vertex out, and from
+ * then on each target is an insertion into the hole, undone from its journal when refused
+ * (far cheaper than taking the vertex out again: the tets come back as they were, in their
+ * slots); if none is kept, the vertex goes back to where it was (the same triangulation: its
+ * star was the zone's, so it fits again, in slots the removal gave back). */
+typedef struct {
+  uint32_t v;                /* its slot, while in the mesh */
+  bool out;                  /* taken out */
+  double x0[3];              /* where it was */
+  i2m_gidx_t gid;            /* its global id, kind and place in the grids, kept by every move */
+  uint8_t kind;
+  vplace_t g;
+  uint32_t start, nremoved;  /* once out: a tet of the hole; the removal's tets (changed[0..)) */
+} mover_t;
+
+static void mover_begin(const i2m_refine_t *r, uint32_t v, mover_t *M)
 {
-  i2m_refine_t *r = P->w->r;
-  i2m_dt_t *dt = r->dt;
-  const double *x = i2m_dt_xyz(dt, *v);
-  const double x0[3] = {x[0], x[1], x[2]};
-  const i2m_gidx_t gid = i2m_dt_gid(dt, *v);
-  const uint8_t kind = dt->vkind[*v];
-  const vplace_t g = place_of(r, *v);
-  const int in_place = move_in_place(P, *v, x0, p, g, floor_cos); /* (a fraction of the cost, when it can) */
-  if (in_place != MOVE_NOT_IN_PLACE) return in_place;
+  const double *x = i2m_dt_xyz(r->dt, v);
+  *M = (mover_t){v, false, {x[0], x[1], x[2]}, i2m_dt_gid(r->dt, v), r->dt->vkind[v], place_of(r, v), 0, 0};
+}
+
+/* The vertex out of the mesh (its removal's tets are the changed list's start).  A MOVE_*
+ * result: MOVE_KEPT here means only that it is out. */
+static int mover_take_out(perturb_t *P, mover_t *M)
+{
   P->nchanged = 0;
-  P->tried++;
-  i2m_dt_status_t st = take_out(P, *v);
+  const i2m_dt_status_t st = take_out(P, M->v);
   if (st == I2M_DT_FAILED) return MOVE_ERROR;
   if (st != I2M_DT_OK) return st == I2M_DT_ROLLBACK || st == I2M_DT_FULL ? MOVE_DEFERRED : MOVE_UNDONE; /* nothing changed */
-  uint32_t start = P->w->ctx.newt[0], moved;
-  st = put_in(P, p, gid, kind, g, start, &moved);
+  M->out = true;
+  M->start = P->w->ctx.newt[0];
+  M->nremoved = P->nchanged;
+  if (i2m_realloc(P->cap_changed, sizeof *P->hole_cos, &P->hole_cos) != I2M_OK ||
+      i2m_realloc(P->cap_changed, sizeof *P->hole_meta, &P->hole_meta) != I2M_OK)
+    return MOVE_ERROR;
+  for (uint32_t k = 0; k < M->nremoved; k++) {
+    P->hole_cos[k] = tet_max_cosine(P->w->r->dt, P->changed[k]);
+    P->hole_meta[k] = i2m_dt_meta(P->w->r->dt, P->changed[k]);
+  }
+  return MOVE_KEPT;
+}
+
+/* The vertex (out) at p, on trial: journaled, so that a refusal undoes it. */
+static i2m_dt_status_t put_in_trial(perturb_t *P, const mover_t *M, const double p[3], uint32_t *moved)
+{
+  P->nchanged = M->nremoved;
+  P->w->ctx.journal = true;
+  const i2m_dt_status_t st = put_in(P, p, M->gid, M->kind, M->g, M->start, false, moved);
+  P->w->ctx.journal = false;
+  return st;
+}
+
+/* A refused trial undone: the vertex out of its grids, its tets and itself out of the lists of
+ * what the task made (dist), the hole's tets back. */
+static i2m_err_t undo_trial(perturb_t *P, const mover_t *M, uint32_t moved, uint32_t nborn, uint32_t nbornv)
+{
+  i2m_refine_worker_t *w = P->w;
+  grids_out(w->r, moved, M->g);
+  w->nborn = nborn;
+  w->nbornv = nbornv;
+  P->nchanged = M->nremoved;
+  return i2m_dt_undo_insert(&w->ctx);
+}
+
+/* One target p for the vertex (the same kind, global id and patch): kept when the changed tets
+ * pass.  A MOVE_* result. */
+static int try_target(perturb_t *P, mover_t *M, const double p[3], double floor_cos)
+{
+  if (!M->out) {
+    const int in_place = move_in_place(P, M->v, M->x0, p, M->g, floor_cos); /* (a fraction of the cost, when it can) */
+    if (in_place != MOVE_NOT_IN_PLACE) return in_place;
+    const int out = mover_take_out(P, M);
+    if (out != MOVE_KEPT) return out;
+  }
+  P->tried++;
+  const uint32_t nborn = P->w->nborn, nbornv = P->w->nbornv;
+  uint32_t moved;
+  const i2m_dt_status_t st = put_in_trial(P, M, p, &moved);
   if (st == I2M_DT_FAILED) return MOVE_ERROR;
-  int verdict = MOVE_UNDONE;
-  if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL) verdict = MOVE_DEFERRED;
-  if (st == I2M_DT_OK) {
-    const int ok = changed_ok(P, floor_cos);
-    if (ok > 0) {
-      P->kept++;
-      *v = moved;
-      return note_touched(P) == I2M_OK ? MOVE_KEPT : MOVE_ERROR;
-    }
-    if (ok < 0) verdict = MOVE_DEFERRED;
+  if (st != I2M_DT_OK) return st == I2M_DT_ROLLBACK || st == I2M_DT_FULL ? MOVE_DEFERRED : MOVE_UNDONE; /* not in */
+  const int ok = changed_ok(P, floor_cos, M->nremoved, 0);
+  if (ok > 0) {
+    P->kept++;
+    M->v = moved;
+    M->out = false;
+    return note_touched(P) == I2M_OK ? MOVE_KEPT : MOVE_ERROR;
   }
-  /* back: take the moved vertex out again (when it went in), then the old point in */
-  P->nchanged = 0;
-  if (st == I2M_DT_OK) {
-    if (take_out(P, moved) != I2M_DT_OK) return MOVE_ERROR;
-    start = P->w->ctx.newt[0];
-  }
-  if (put_in(P, x0, gid, kind, g, start, v) != I2M_DT_OK) return MOVE_ERROR;
-  return note_touched(P) == I2M_OK ? verdict : MOVE_ERROR;
+  if (undo_trial(P, M, moved, nborn, nbornv) != I2M_OK) return MOVE_ERROR;
+  return ok < 0 ? MOVE_DEFERRED : MOVE_UNDONE;
+}
+
+/* After the vertex's targets: back where it was, if none was kept. */
+static int mover_end(perturb_t *P, mover_t *M)
+{
+  if (!M->out) return MOVE_UNDONE;
+  P->nchanged = M->nremoved;
+  if (put_in(P, M->x0, M->gid, M->kind, M->g, M->start, true, &M->v) != I2M_DT_OK) return MOVE_ERROR;
+  M->out = false;
+  return note_touched(P) == I2M_OK ? MOVE_UNDONE : MOVE_ERROR;
 }
 
 /* A surface vertex stays on its interface patch: p becomes the closest interface point to p,
@@ -494,6 +599,8 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
     }
     if (!isfinite(lmin2)) continue;
     const double lmin = sqrt(lmin2);
+    mover_t M;
+    mover_begin(w->r, v, &M);
     for (int m = 0; m < MOVES_PER_VERTEX; m++) {
       /* a random direction, at a distance from 0.05 to 0.3 of the shortest edge */
       double d[3], n2;
@@ -502,15 +609,15 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
         n2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
       } while (n2 > 1.0 || n2 < 1e-6);
       const double len = lmin * (0.05 + 0.25 * uniform01(&P->rng)) / sqrt(n2);
-      const double *xv = i2m_dt_xyz(dt, v);
-      double p[3] = {xv[0] + len * d[0], xv[1] + len * d[1], xv[2] + len * d[2]};
-      if (surface && !onto_patch(w->r, w->r->surf.tag[v], p)) continue;
-      const int got = try_move(P, &v, p, floor_cos);
+      double p[3] = {M.x0[0] + len * d[0], M.x0[1] + len * d[1], M.x0[2] + len * d[2]};
+      if (surface && !onto_patch(w->r, M.g.tag, p)) continue;
+      const int got = try_target(P, &M, p, floor_cos);
       moved = i;
       if (got == MOVE_KEPT || got == MOVE_ERROR) return got;
       if (got == MOVE_DEFERRED) result = MOVE_DEFERRED;
     }
-    verts[i] = v; /* (its slot after the moves undone) */
+    if (mover_end(P, &M) == MOVE_ERROR) return MOVE_ERROR;
+    verts[i] = M.v; /* (its slot after the moves undone) */
   }
   if (result == MOVE_DEFERRED && moved >= 0) { /* (no move tried: the tet is as it was) */
     const uint32_t t = tet_of_vertices(P, verts, moved);
@@ -621,7 +728,11 @@ static void pass_free(i2m_refine_t *r)
   for (int k = 0; S->per && k < r->nworkers; k++) {
     perturb_t *P = &S->per[k];
     i2m_free(&P->star);
+    i2m_free(&P->seen);
+    i2m_free(&P->seen_stamp);
     i2m_free(&P->changed);
+    i2m_free(&P->hole_cos);
+    i2m_free(&P->hole_meta);
     i2m_free(&P->saved);
     i2m_free(&P->touched);
     i2m_free(&P->deferred.a);

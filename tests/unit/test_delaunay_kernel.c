@@ -358,6 +358,127 @@ static void test_move_lattice(void)
   free(xyz);
 }
 
+/* Every live tet's record (vertices, neighbours, generation, payload), slot by slot. */
+typedef struct {
+  uint32_t n, *tv, *tn, *meta;
+  uint64_t *pay;
+} tet_records_t;
+
+static void records_take(const i2m_dt_t *dt, tet_records_t *s)
+{
+  s->n = i2m_dt_ntets_slots(dt);
+  s->tv = malloc(4 * (size_t)s->n * sizeof *s->tv);
+  s->tn = malloc(4 * (size_t)s->n * sizeof *s->tn);
+  s->meta = malloc(s->n * sizeof *s->meta);
+  s->pay = malloc(s->n * sizeof *s->pay);
+  memcpy(s->tv, dt->tv, 4 * (size_t)s->n * sizeof *s->tv);
+  memcpy(s->tn, dt->tn, 4 * (size_t)s->n * sizeof *s->tn);
+  for (uint32_t t = 0; t < s->n; t++) {
+    s->meta[t] = i2m_dt_meta(dt, t);
+    memcpy(&s->pay[t], i2m_dt_payload(dt, t), sizeof *s->pay);
+  }
+}
+
+/* The live tets of dt are exactly those of s, with the same records (dt may have more slots,
+ * dead). */
+static bool records_same(const i2m_dt_t *dt, const tet_records_t *s)
+{
+  for (uint32_t t = 0; t < i2m_dt_ntets_slots(dt); t++) {
+    const bool was = t < s->n && !(s->meta[t] & I2M_TM_DEAD);
+    if (i2m_dt_alive(dt, t) != was) return false;
+    if (!was) continue;
+    uint64_t pay;
+    memcpy(&pay, i2m_dt_payload(dt, t), sizeof pay);
+    if (memcmp(dt->tv + 4 * (size_t)t, s->tv + 4 * (size_t)t, 4 * sizeof *s->tv) != 0 ||
+        memcmp(dt->tn + 4 * (size_t)t, s->tn + 4 * (size_t)t, 4 * sizeof *s->tn) != 0 || i2m_dt_meta(dt, t) != s->meta[t] ||
+        pay != s->pay[t])
+      return false;
+  }
+  return true;
+}
+
+static void records_free(tet_records_t *s)
+{
+  free(s->tv);
+  free(s->tn);
+  free(s->meta);
+  free(s->pay);
+}
+
+/* Journaled insertions undone (i2m_dt_undo_insert) leave every live tet as it was, slot by
+ * slot with its generation and payload, and the vertex slots as they were; as the sliver pass
+ * uses them: a vertex taken out, points tried near it and undone, then the vertex put back,
+ * which must give the triangulation built anew. */
+static void undo_case(double *xyz, size_t n, size_t nvertices, uint64_t seed)
+{
+  int64_t *gid = malloc(n * sizeof *gid);
+  uint32_t *vid = malloc(n * sizeof *vid);
+  for (size_t i = 0; i < n; i++) gid[i] = 8 + (int64_t)i;
+  const double L[3] = {-64, -64, -64}, H[3] = {128, 128, 128};
+  i2m_dt_t *dt = NULL;
+  CU_ASSERT_FATAL(i2m_dt_create(L, H, (uint32_t)n, sizeof(uint64_t), &dt) == I2M_OK);
+  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, seed, vid, NULL) == I2M_OK);
+  for (uint32_t t = 0; t < i2m_dt_ntets_slots(dt); t++) { /* a payload to restore: a word per slot */
+    const uint64_t w = 0x9E3779B97F4A7C15ull * (t + 1);
+    memcpy(i2m_dt_payload(dt, t), &w, sizeof w);
+  }
+  i2m_dt_ctx_t ctx;
+  CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
+  rng_state ^= seed * 0x9E3779B97F4A7C15ull;
+  size_t undone = 0;
+  for (size_t k = 0; k < nvertices; k++) {
+    const size_t i = (size_t)(urand() * (double)n) % n;
+    CU_ASSERT_EQUAL_FATAL(i2m_dt_remove(&ctx, vid[i]), I2M_DT_OK);
+    i2m_dt_unlock_all(&ctx);
+    const uint32_t start = ctx.newt[0];
+    tet_records_t before;
+    records_take(dt, &before);
+    const uint32_t nv = i2m_dt_nverts_slots(dt);
+    ctx.journal = true;
+    for (int m = 0; m < 8; m++) {
+      double p[3];
+      for (int a = 0; a < 3; a++) p[a] = xyz[3 * i + a] + 0.3 * (2 * urand() - 1);
+      uint32_t v;
+      const i2m_dt_status_t st = i2m_dt_insert_walk(&ctx, p, gid[i], I2M_VK_FREE, start, &v);
+      i2m_dt_unlock_all(&ctx);
+      CU_ASSERT_EQUAL_FATAL(st, I2M_DT_OK);
+      for (uint32_t q = 0; q < ctx.nnew; q++) memset(i2m_dt_payload(dt, ctx.newt[q]), 0xA5, sizeof(uint64_t));
+      CU_ASSERT_EQUAL_FATAL(i2m_dt_undo_insert(&ctx), I2M_OK);
+      CU_ASSERT_EQUAL(dt->vkind[v], I2M_VK_DEAD);
+      CU_ASSERT_FATAL(records_same(dt, &before));
+      CU_ASSERT_EQUAL(i2m_dt_undo_insert(&ctx), I2M_ERR_INTERNAL); /* (nothing left to undo) */
+      undone++;
+    }
+    ctx.journal = false;
+    CU_ASSERT(i2m_dt_nverts_slots(dt) <= nv + 1);
+    records_free(&before);
+    CU_ASSERT_EQUAL_FATAL(i2m_dt_insert_walk(&ctx, xyz + 3 * i, gid[i], I2M_VK_FREE, start, &vid[i]), I2M_DT_OK);
+    i2m_dt_unlock_all(&ctx);
+  }
+  i2m_dt_ctx_free(&ctx);
+  CU_ASSERT_EQUAL(undone, 8 * nvertices);
+  assert_as_built_anew(&dt, xyz, gid, NULL, n);
+  free(gid);
+  free(vid);
+}
+
+static void test_undo_random(void)
+{
+  size_t n = N_RANDOM / 50;
+  double *xyz = malloc(3 * n * sizeof *xyz);
+  for (size_t i = 0; i < 3 * n; i++) xyz[i] = 10 * urand();
+  undo_case(xyz, n, n / 20, 31);
+  free(xyz);
+}
+
+static void test_undo_lattice(void)
+{
+  size_t n;
+  double *xyz = lattice_points(LATTICE / 3, 1.0, &n);
+  undo_case(xyz, n, n / 10, 32);
+  free(xyz);
+}
+
 static void test_remove_everything(void)
 {
   size_t n = 500;
@@ -531,5 +652,7 @@ static const test_case_t cases[] = {
     {"move random points: in place or reinserted, as if built anew", test_move_random},
     {"move lattice points: onto their places in place, by h/8 reinserted, as if built anew", test_move_lattice},
     {"large star: remove, insert again", test_large_star_remove_insert},
+    {"journaled insertions undone: every tet back in its slot (random points)", test_undo_random},
+    {"journaled insertions undone: every tet back in its slot (lattice)", test_undo_lattice},
 };
 TEST_MAIN("delaunay kernel", cases)

@@ -560,11 +560,12 @@ static uint32_t tet_of_vertices(perturb_t *P, const uint32_t v[4], int a)
 }
 
 /* Tries to move each vertex of sliver s (free vertices anywhere near, surface vertices along
- * their patch), in the order of their global ids, until one move is kept.  A MOVE_* result
- * (MOVE_DEFERRED: some move could not stay in the zone, none was kept).  A deferred sliver's
- * tet is then the one its vertices make now: moves tried and undone rebuild it in other
- * slots, and the sequential pass must find it (else it would skip the sliver as changed, and
- * a sliver whose moves always leave the zone would never be treated). */
+ * their patch), the free ones first, each kind in the order of their global ids, until one
+ * move is kept.  A MOVE_* result (MOVE_DEFERRED: some move could not stay in the zone, none
+ * was kept).  A deferred sliver's tet is then the one its vertices make now: moves tried and
+ * undone rebuild it in other slots, and the sequential pass must find it (else it would skip
+ * the sliver as changed, and a sliver whose moves always leave the zone would never be
+ * treated). */
 static int treat_sliver(perturb_t *P, sliver_t *s)
 {
   i2m_refine_worker_t *w = P->w;
@@ -573,7 +574,9 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
   uint32_t verts[4];
   i2m_gidx_t gid[4];
   memcpy(verts, dt->tv + 4 * (size_t)s->t, sizeof verts);
-  for (int i = 0; i < 4; i++) gid[i] = i2m_dt_gid(dt, verts[i]);
+  /* the free vertices first (they move anywhere), then the surface vertices, each in the
+   * order of their global ids */
+  for (int i = 0; i < 4; i++) gid[i] = i2m_dt_gid(dt, verts[i]) + ((i2m_gidx_t)(dt->vkind[verts[i]] != I2M_VK_FREE) << 62);
   sort4_gid(gid, verts);
   int result = MOVE_UNDONE, moved = -1; /* moved: a vertex whose moves were tried */
   for (int i = 0; i < 4; i++) {

@@ -48,8 +48,8 @@ typedef struct {
   uint32_t *star, nstar, cap_star;
   uint32_t *seen, *seen_stamp, cap_seen, stamp; /* star_of's set of the tets found (open addressing) */
   uint32_t *changed, nchanged, cap_changed;
-  double *hole_cos;                         /* [cap_changed] a removal's tets' largest dihedral cosines */
-  uint32_t *hole_meta;                      /* [cap_changed] and generations */
+  double *hole_cos;                         /* [cap_hole] a removal's tets' largest dihedral cosines */
+  uint32_t *hole_meta, cap_hole;            /* [cap_hole] and generations */
   uint32_t *touched, ntouched, cap_touched; /* tets the moves of this round made */
   sliver_list_t deferred;                   /* slivers a zone could not hold */
   uint32_t *saved, cap_saved;               /* an in-place move's tets: labels and tiles before */
@@ -249,7 +249,7 @@ static i2m_err_t grids_in(i2m_refine_t *r, uint32_t v, vplace_t g)
 
 /* Appends the tets the last kernel operation created to the changed list, labelled (the
  * rules compare neighbours' labels) unless the caller labels them later (changed_ok). */
-static i2m_err_t label_created(perturb_t *P, bool label)
+static i2m_err_t note_created(perturb_t *P, bool label)
 {
   i2m_refine_t *r = P->w->r;
   const i2m_dt_ctx_t *ctx = &P->w->ctx;
@@ -272,7 +272,7 @@ static i2m_dt_status_t take_out(perturb_t *P, uint32_t v)
   const i2m_dt_status_t st = i2m_dt_remove(ctx, v);
   i2m_dt_unlock_all(ctx);
   if (st != I2M_DT_OK) return grids_in(r, v, g) == I2M_OK ? st : I2M_DT_FAILED;
-  return label_created(P, false) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
+  return note_created(P, false) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
 }
 
 /* Does the worker's zone (if any) hold every vertex of the face of tet t opposite i?  Only
@@ -323,14 +323,15 @@ static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, u
   if (st != I2M_DT_OK) return st;
   if (grids_in(r, *vout, g) != I2M_OK) return I2M_DT_FAILED;
   if (dist_tracking(r) && dist_note_vertex(P->w, *vout) != I2M_OK) return I2M_DT_FAILED;
-  return label_created(P, label) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
+  return note_created(P, label) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
 }
 
 /* Do the changed tets pass every rule, with their smallest dihedral angle above the star's
  * worst (their largest cosine below floor_cos)?  1 yes, 0 no, -1 the rules cannot tell
  * inside the zone.  The first `cached` changed tets' cosines are P->hole_cos's (a removal's
- * tets, the same for every trial of its vertex, unless the trial took their slots).  The changed tets from `unlabelled` on get
- * their labels once the angles pass (most trials fail on the angles, and need none). */
+ * tets, the same for every trial of its vertex, unless the trial took their slots).  The
+ * changed tets from `unlabelled` on get their labels once the angles pass (most trials fail
+ * on the angles, and need none). */
 static int changed_ok(perturb_t *P, double floor_cos, uint32_t cached, uint32_t unlabelled)
 {
   const i2m_dt_t *dt = P->w->r->dt;
@@ -463,9 +464,12 @@ static int mover_take_out(perturb_t *P, mover_t *M)
   M->out = true;
   M->start = P->w->ctx.newt[0];
   M->nremoved = P->nchanged;
-  if (i2m_realloc(P->cap_changed, sizeof *P->hole_cos, &P->hole_cos) != I2M_OK ||
-      i2m_realloc(P->cap_changed, sizeof *P->hole_meta, &P->hole_meta) != I2M_OK)
-    return MOVE_ERROR;
+  if (M->nremoved > P->cap_hole) {
+    P->cap_hole = M->nremoved + M->nremoved / 2 + 64;
+    if (i2m_realloc(P->cap_hole, sizeof *P->hole_cos, &P->hole_cos) != I2M_OK ||
+        i2m_realloc(P->cap_hole, sizeof *P->hole_meta, &P->hole_meta) != I2M_OK)
+      return MOVE_ERROR;
+  }
   for (uint32_t k = 0; k < M->nremoved; k++) {
     P->hole_cos[k] = tet_max_cosine(P->w->r->dt, P->changed[k]);
     P->hole_meta[k] = i2m_dt_meta(P->w->r->dt, P->changed[k]);

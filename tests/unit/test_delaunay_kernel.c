@@ -197,13 +197,24 @@ static void test_perturbed_grid(void)
   free(xyz);
 }
 
-/* The tetrahedralization of n points with global ids 8 + i (*gid), their slots in *vid. */
-static i2m_dt_t *build_with_ids(const double *xyz, size_t n, uint64_t seed, int64_t **gid, uint32_t **vid)
+/* n random points in [0, 10)^3 (malloc'd). */
+static double *random_points(size_t n)
+{
+  double *xyz = malloc(3 * n * sizeof *xyz);
+  for (size_t i = 0; i < 3 * n; i++) xyz[i] = 10 * urand();
+  return xyz;
+}
+
+/* The tetrahedralization of n points with global ids 8 + i (*gid), their slots in *vid, with
+ * pay bytes of payload per tet. */
+static i2m_dt_t *build_with_ids(const double *xyz, size_t n, uint64_t seed, size_t pay, int64_t **gid, uint32_t **vid)
 {
   *gid = malloc(n * sizeof **gid);
   *vid = malloc(n * sizeof **vid);
   for (size_t i = 0; i < n; i++) (*gid)[i] = 8 + (int64_t)i;
-  i2m_dt_t *dt = make_dt(-64, 128, (uint32_t)n);
+  const double L[3] = {-64, -64, -64}, H[3] = {128, 128, 128};
+  i2m_dt_t *dt = NULL;
+  CU_ASSERT_FATAL(i2m_dt_create(L, H, (uint32_t)n, pay, &dt) == I2M_OK);
   CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, seed, *vid, NULL) == I2M_OK);
   return dt;
 }
@@ -240,7 +251,7 @@ static void removal_case(double *xyz, size_t n, double frac, uint64_t seed)
 {
   int64_t *gid;
   uint32_t *vid;
-  i2m_dt_t *dt = build_with_ids(xyz, n, seed, &gid, &vid);
+  i2m_dt_t *dt = build_with_ids(xyz, n, seed, 0, &gid, &vid);
   i2m_dt_ctx_t ctx;
   CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
   char *removed = calloc(n, 1);
@@ -271,8 +282,7 @@ static void removal_case(double *xyz, size_t n, double frac, uint64_t seed)
 static void test_remove_random(void)
 {
   size_t n = N_RANDOM / 20;
-  double *xyz = malloc(3 * n * sizeof *xyz);
-  for (size_t i = 0; i < 3 * n; i++) xyz[i] = 10 * urand();
+  double *xyz = random_points(n);
   removal_case(xyz, n, 0.3, 11);
   free(xyz);
 }
@@ -294,7 +304,7 @@ static void move_case(double *xyz, size_t n, size_t nmoves, double step, bool ax
 {
   int64_t *gid;
   uint32_t *vid;
-  i2m_dt_t *dt = build_with_ids(xyz, n, seed, &gid, &vid);
+  i2m_dt_t *dt = build_with_ids(xyz, n, seed, 0, &gid, &vid);
   char *moved = calloc(n, 1);
   i2m_dt_ctx_t ctx;
   CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
@@ -333,8 +343,7 @@ static void move_case(double *xyz, size_t n, size_t nmoves, double step, bool ax
 static void test_move_random(void)
 {
   size_t n = N_RANDOM / 20;
-  double *xyz = malloc(3 * n * sizeof *xyz);
-  for (size_t i = 0; i < 3 * n; i++) xyz[i] = 10 * urand();
+  double *xyz = random_points(n);
   size_t counts[2];
   move_case(xyz, n, n, 0.1 * 10 / cbrt((double)n), false, 21, counts); /* (a tenth of the spacing) */
   CU_ASSERT(counts[0] > n / 20); /* (about 12% in place) */
@@ -411,13 +420,9 @@ static void records_free(tet_records_t *s)
  * which must give the triangulation built anew. */
 static void undo_case(double *xyz, size_t n, size_t nvertices, uint64_t seed)
 {
-  int64_t *gid = malloc(n * sizeof *gid);
-  uint32_t *vid = malloc(n * sizeof *vid);
-  for (size_t i = 0; i < n; i++) gid[i] = 8 + (int64_t)i;
-  const double L[3] = {-64, -64, -64}, H[3] = {128, 128, 128};
-  i2m_dt_t *dt = NULL;
-  CU_ASSERT_FATAL(i2m_dt_create(L, H, (uint32_t)n, sizeof(uint64_t), &dt) == I2M_OK);
-  CU_ASSERT_FATAL(i2m_dt_insert_points(dt, xyz, (int64_t)n, 8, seed, vid, NULL) == I2M_OK);
+  int64_t *gid;
+  uint32_t *vid;
+  i2m_dt_t *dt = build_with_ids(xyz, n, seed, sizeof(uint64_t), &gid, &vid);
   for (uint32_t t = 0; t < i2m_dt_ntets_slots(dt); t++) { /* a payload to restore: a word per slot */
     const uint64_t w = 0x9E3779B97F4A7C15ull * (t + 1);
     memcpy(i2m_dt_payload(dt, t), &w, sizeof w);
@@ -465,8 +470,7 @@ static void undo_case(double *xyz, size_t n, size_t nvertices, uint64_t seed)
 static void test_undo_random(void)
 {
   size_t n = N_RANDOM / 50;
-  double *xyz = malloc(3 * n * sizeof *xyz);
-  for (size_t i = 0; i < 3 * n; i++) xyz[i] = 10 * urand();
+  double *xyz = random_points(n);
   undo_case(xyz, n, n / 20, 31);
   free(xyz);
 }

@@ -315,8 +315,9 @@ i2m_err_t i2m_refine_slivers_end(i2m_refine_t *r, i2m_sliver_stats_t *st);
  * in the tile's own tets and treats them inside its zone; rounds and stages are the dist
  * layer's.  The figures of *st are this rank's (the dist layer sums them). ---- */
 i2m_err_t i2m_refine_slivers_dist_begin(i2m_refine_t *r, double bound);
-/** The bound of this stage (degrees) and the round (it seeds the moves). */
-void i2m_refine_slivers_dist_round(i2m_refine_t *r, double bound, int round);
+/** The bound of this stage (degrees), the round (it seeds the moves) and whether it is wide
+ *  (more targets, farther: after a round that kept no move). */
+void i2m_refine_slivers_dist_round(i2m_refine_t *r, double bound, int round, bool wide);
 /** Slivers of tile id now (below the stage's bound). */
 int64_t i2m_refine_tile_sliver_count(i2m_refine_t *r, uint32_t id);
 /** Before a job of sliver tasks: slots granted, the grids' room made. */

@@ -1,121 +1,78 @@
-/* Delaunay layer: vertex removal (REFERENCE §1.6).  The star of v is replaced by the tets of
- * the Delaunay tetrahedralization of v's link vertices (plus the same 8 box corners) that lie
- * on v's side of the link.  The local triangulation uses the vertices' own global ids for
- * the symbolic perturbation, so it is unique and agrees with the main mesh: every link face
- * appears in it, and the result is exactly the Delaunay tetrahedralization without v. */
+/* Delaunay layer: vertex removal (REFERENCE §1.6).  The star of v is replaced by the
+ * Delaunay tetrahedralization of its hole (the tets of the Delaunay tetrahedralization of
+ * the link vertices that lie inside the link), built by gift-wrapping from the link faces:
+ * the tet on the inner side of an open face is the one whose apex, among the link vertices
+ * on that side, leaves the others out of its ball (the kernel's perturbed insphere test with
+ * the vertices' global ids, so the choice is unique and agrees with the main mesh).  The
+ * link faces are Delaunay faces of the link vertices, so each tet found is one of the hole's
+ * and the result is exactly the Delaunay tetrahedralization without v.  Before, the link
+ * vertices were inserted into a scratch triangulation over the whole box: the link vertices
+ * surround v, so every insertion rebuilt part of the scratch hull and three of five tets made
+ * lay outside the hole.  The new tets are put in a canonical form (vertex order and order by
+ * global ids), so they are a function of the star only, whichever tet the search began with
+ * (ranks that hold the same star make the same tets). */
 #include "dt_impl.h"
 
+#include <float.h>
+#include <math.h>
 #include <stdlib.h>
 
+/* A face of the hole: a link face (its outside neighbour in the main mesh) or a face of a
+ * tet made here (4k+j: local tet k, face j), open until the tet on its other side is made. */
 typedef struct {
-  uint32_t key[3];  /* sorted local vertex ids of a link face */
-  uint32_t out;     /* outside neighbour (4u+j in the main mesh) or I2M_DT_NONE */
-  uint32_t used;    /* stamp */
-} link_face_t;
+  uint32_t key[3]; /* sorted main vertex ids */
+  uint32_t out;    /* link face: the outside neighbour (4u+j, I2M_DT_NONE or I2M_DT_REMOTE) */
+  uint32_t owner;  /* made face: 4k+j; link face: I2M_DT_NONE */
+  uint32_t stamp;  /* entry valid when == the removal's stamp */
+  uint8_t closed;
+} hole_face_t;
+
+/* An open face to wrap: the tet to be is q with q[at] replaced by the apex found. */
+typedef struct {
+  uint32_t q[4];
+  uint32_t face; /* its entry in the face table */
+  uint8_t at;
+} open_face_t;
 
 struct i2m_dt_removal {
-  i2m_dt_t *loc;          /* owned: scratch triangulation over the same virtual box */
-  i2m_dt_ctx_t lctx;      /* owned: its context */
-  uint32_t nbox_tets;     /* tets of the empty box */
-  uint32_t box_tv[24], box_tn[24];
-  uint32_t *lmap;         /* [local vertex] -> main vertex */
-  uint32_t cap_lmap;
-  uint32_t *vmark_v;      /* main vertices seen (small open hash: main id -> local id) */
-  uint32_t *vmark_l, *vmark_s, vcap, vstamp;
-  link_face_t *lf;        /* link-face hash */
-  uint32_t lfcap, lfstamp;
-  uint32_t *fill;         /* local tets on v's side */
-  uint32_t nfill, cap_fill;
-  uint32_t *slot;         /* [local tet] -> main slot (I2M_DT_NONE if not in the fill) */
-  uint32_t cap_slot;
-  uint32_t *link;         /* the link vertices, in the order of their global ids */
+  hole_face_t *faces; /* open addressing, stamped */
+  uint32_t fcap, fstamp;
+  open_face_t *queue;
+  uint32_t nqueue, cap_queue;
+  uint32_t *tv;       /* [4k+i] the tets made (main vertex ids) */
+  uint32_t *tn;       /* [4k+i] their neighbours: 4k'+j' (a tet made here) or the outside's word */
+  uint8_t *made;      /* [4k+i] does tn name a tet made here? */
+  uint32_t ntets, cap_tets;
+  uint32_t *order, *rank_of; /* canonical order of the tets made, and its inverse */
+  uint8_t *perm;      /* [4k+i] the old index of canonical position i */
+  i2m_gidx_t *cgid;   /* [4k+i] the global ids in canonical order */
+  uint32_t *link;     /* the link vertices */
   uint32_t nlink, cap_link;
+  uint32_t *vseen;    /* small open hash of the link vertices seen */
+  uint32_t vcap, vstamp, *vstamp_of;
 };
 
 void removal_free(struct i2m_dt_removal **rmp)
 {
   if (!rmp || !*rmp) return;
   struct i2m_dt_removal *rm = *rmp;
-  i2m_dt_ctx_free(&rm->lctx);
-  i2m_dt_destroy(&rm->loc);
-  i2m_free(&rm->lmap);
-  i2m_free(&rm->vmark_v);
-  i2m_free(&rm->vmark_l);
-  i2m_free(&rm->vmark_s);
-  i2m_free(&rm->lf);
-  i2m_free(&rm->fill);
-  i2m_free(&rm->slot);
+  i2m_free(&rm->faces);
+  i2m_free(&rm->queue);
+  i2m_free(&rm->tv);
+  i2m_free(&rm->tn);
+  i2m_free(&rm->made);
+  i2m_free(&rm->order);
+  i2m_free(&rm->rank_of);
+  i2m_free(&rm->perm);
+  i2m_free(&rm->cgid);
   i2m_free(&rm->link);
+  i2m_free(&rm->vseen);
+  i2m_free(&rm->vstamp_of);
   i2m_free(rmp);
 }
 
-static i2m_err_t removal_create(const i2m_dt_t *dt, struct i2m_dt_removal **out)
-{
-  struct i2m_dt_removal *rm = NULL;
-  I2M_CALL(i2m_calloc(1, sizeof *rm, &rm));
-  i2m_err_t err = i2m_dt_create(dt->box_lo, dt->box_hi, 64, 0, &rm->loc);
-  if (err == I2M_OK) err = i2m_dt_ctx_init(&rm->lctx, rm->loc, 1, false);
-  if (err != I2M_OK) {
-    removal_free(&rm);
-    return err;
-  }
-  rm->nbox_tets = i2m_dt_ntets_slots(rm->loc);
-  memcpy(rm->box_tv, rm->loc->tv, 4 * rm->nbox_tets * sizeof(uint32_t));
-  memcpy(rm->box_tn, rm->loc->tn, 4 * rm->nbox_tets * sizeof(uint32_t));
-  *out = rm;
-  return I2M_OK;
-}
+static i2m_err_t removal_create(struct i2m_dt_removal **out) { return i2m_calloc(1, sizeof **out, out); }
 
-/* Back to the empty box: 8 corners and their tets. */
-static void local_reset(struct i2m_dt_removal *rm)
-{
-  i2m_dt_t *loc = rm->loc;
-  memcpy(loc->tv, rm->box_tv, 4 * rm->nbox_tets * sizeof(uint32_t));
-  memcpy(loc->tn, rm->box_tn, 4 * rm->nbox_tets * sizeof(uint32_t));
-  for (uint32_t t = 0; t < rm->nbox_tets; t++) {
-    meta_store(loc, t, 0);
-    for (int i = 0; i < 4; i++) loc->vtet[loc->tv[4 * t + i]] = t;
-  }
-  /* every slot handed out since (used or still in the context's fresh range) is dead again */
-  for (uint32_t t = rm->nbox_tets; t < i2m_dt_ntets_slots(loc); t++) meta_store(loc, t, I2M_TM_DEAD);
-  atomic_store_explicit(&loc->nt_atomic, rm->nbox_tets, memory_order_relaxed);
-  atomic_store_explicit(&loc->nv_atomic, 8, memory_order_relaxed);
-  loc->nfree_t = loc->nfree_v = 0;
-  rm->lctx.slots.npool = rm->lctx.slots.nvpool = 0;
-  rm->lctx.slots.fresh_next = rm->lctx.slots.fresh_end = 0;
-}
-
-/* ---- main vertex -> local vertex (open addressing with stamps) ---- */
-static i2m_err_t vmap_prepare(struct i2m_dt_removal *rm, uint32_t n)
-{
-  if (4 * n > rm->vcap) {
-    uint32_t cap = 256;
-    while (cap < 4 * n) cap *= 2;
-    i2m_free(&rm->vmark_v);
-    i2m_free(&rm->vmark_l);
-    i2m_free(&rm->vmark_s);
-    rm->vcap = cap;
-    rm->vstamp = 0;
-    I2M_CALL(i2m_malloc(cap, sizeof(uint32_t), &rm->vmark_v));
-    I2M_CALL(i2m_malloc(cap, sizeof(uint32_t), &rm->vmark_l));
-    I2M_CALL(i2m_calloc(cap, sizeof(uint32_t), &rm->vmark_s));
-  }
-  if (++rm->vstamp == 0) {
-    memset(rm->vmark_s, 0, rm->vcap * sizeof(uint32_t));
-    rm->vstamp = 1;
-  }
-  return I2M_OK;
-}
-
-/* Slot of main vertex v in the map (found, or the empty slot where it belongs). */
-static uint32_t vmap_slot(const struct i2m_dt_removal *rm, uint32_t v)
-{
-  uint32_t s = (v * 2654435761u) & (rm->vcap - 1);
-  while (rm->vmark_s[s] == rm->vstamp && rm->vmark_v[s] != v) s = (s + 1) & (rm->vcap - 1);
-  return s;
-}
-
-/* ---- link faces ---- */
 static void sort3(uint32_t k[3])
 {
   uint32_t t;
@@ -124,31 +81,144 @@ static void sort3(uint32_t k[3])
   if (k[0] > k[1]) { t = k[0]; k[0] = k[1]; k[1] = t; }
 }
 
-static uint32_t lf_slot(const struct i2m_dt_removal *rm, const uint32_t k[3])
+/* The sorted key of the face of q opposite index i. */
+static void face_key(const uint32_t q[4], int i, uint32_t k[3])
 {
-  uint64_t h = ((uint64_t)k[0] * 0x9E3779B97F4A7C15ull) ^ ((uint64_t)k[1] * 0xC2B2AE3D27D4EB4Full) ^
-               ((uint64_t)k[2] * 0x165667B19E3779F9ull);
-  uint32_t s = (uint32_t)(h >> 32) & (rm->lfcap - 1);
-  while (rm->lf[s].used == rm->lfstamp && memcmp(rm->lf[s].key, k, sizeof rm->lf[s].key) != 0)
-    s = (s + 1) & (rm->lfcap - 1);
+  int n = 0;
+  for (int j = 0; j < 4; j++)
+    if (j != i) k[n++] = q[j];
+  sort3(k);
+}
+
+/* ---- the face table ---- */
+static i2m_err_t faces_prepare(struct i2m_dt_removal *rm, uint32_t n)
+{
+  if (8 * n > rm->fcap) {
+    uint32_t cap = 256;
+    while (cap < 8 * n) cap *= 2;
+    i2m_free(&rm->faces);
+    rm->fcap = cap;
+    rm->fstamp = 0;
+    I2M_CALL(i2m_calloc(cap, sizeof *rm->faces, &rm->faces));
+  }
+  if (++rm->fstamp == 0) {
+    for (uint32_t s = 0; s < rm->fcap; s++) rm->faces[s].stamp = 0;
+    rm->fstamp = 1;
+  }
+  return I2M_OK;
+}
+
+/* The entry of face key k: found, or the empty one where it belongs (stamp not current). */
+static uint32_t faces_slot(const struct i2m_dt_removal *rm, const uint32_t k[3])
+{
+  const uint64_t h = ((uint64_t)k[0] * 0x9E3779B97F4A7C15ull) ^ ((uint64_t)k[1] * 0xC2B2AE3D27D4EB4Full) ^
+                     ((uint64_t)k[2] * 0x165667B19E3779F9ull);
+  uint32_t s = (uint32_t)(h >> 32) & (rm->fcap - 1);
+  while (rm->faces[s].stamp == rm->fstamp &&
+         (rm->faces[s].key[0] != k[0] || rm->faces[s].key[1] != k[1] || rm->faces[s].key[2] != k[2]))
+    s = (s + 1) & (rm->fcap - 1);
   return s;
 }
 
-static i2m_err_t lf_prepare(struct i2m_dt_removal *rm, uint32_t n)
+/* The table twice as large, its entries moved, and the open faces' entries with them. */
+static i2m_err_t faces_grow(struct i2m_dt_removal *rm, uint32_t from)
 {
-  if (4 * n > rm->lfcap) {
-    uint32_t cap = 256;
-    while (cap < 4 * n) cap *= 2;
-    i2m_free(&rm->lf);
-    rm->lfcap = cap;
-    rm->lfstamp = 0;
-    I2M_CALL(i2m_calloc(cap, sizeof(link_face_t), &rm->lf));
+  hole_face_t *old = rm->faces;
+  const uint32_t oldcap = rm->fcap, stamp = rm->fstamp;
+  uint32_t *moved = NULL;
+  I2M_CALL(i2m_malloc(oldcap, sizeof *moved, &moved));
+  rm->faces = NULL;
+  i2m_err_t err = i2m_calloc(2 * (size_t)oldcap, sizeof *rm->faces, &rm->faces);
+  if (err != I2M_OK) {
+    rm->faces = old;
+    i2m_free(&moved);
+    return err;
   }
-  if (++rm->lfstamp == 0) {
-    for (uint32_t s = 0; s < rm->lfcap; s++) rm->lf[s].used = 0;
-    rm->lfstamp = 1;
+  rm->fcap = 2 * oldcap;
+  rm->fstamp = 1;
+  for (uint32_t s = 0; s < oldcap; s++) {
+    if (old[s].stamp != stamp) continue;
+    const uint32_t t = faces_slot(rm, old[s].key);
+    rm->faces[t] = old[s];
+    rm->faces[t].stamp = 1;
+    moved[s] = t;
   }
+  for (uint32_t h = from; h < rm->nqueue; h++) rm->queue[h].face = moved[rm->queue[h].face];
+  i2m_free(&old);
+  i2m_free(&moved);
   return I2M_OK;
+}
+
+/* ---- step 2: the link vertices and faces ---- */
+static bool link_add(struct i2m_dt_removal *rm, uint32_t w)
+{
+  uint32_t s = (w * 2654435761u) & (rm->vcap - 1);
+  while (rm->vstamp_of[s] == rm->vstamp) {
+    if (rm->vseen[s] == w) return false;
+    s = (s + 1) & (rm->vcap - 1);
+  }
+  rm->vstamp_of[s] = rm->vstamp;
+  rm->vseen[s] = w;
+  rm->link[rm->nlink++] = w;
+  return true;
+}
+
+static i2m_err_t queue_push(struct i2m_dt_removal *rm, const uint32_t q[4], int at, uint32_t face)
+{
+  if (rm->nqueue == rm->cap_queue) {
+    const uint32_t cap = rm->cap_queue ? 2 * rm->cap_queue : 128;
+    I2M_CALL(i2m_realloc(cap, sizeof *rm->queue, &rm->queue));
+    rm->cap_queue = cap;
+  }
+  open_face_t *o = &rm->queue[rm->nqueue++];
+  memcpy(o->q, q, sizeof o->q);
+  o->at = (uint8_t)at;
+  o->face = face;
+  return I2M_OK;
+}
+
+/* The link vertices, and the link faces as open faces (each with v's tet as the tet to be,
+ * v to be replaced): star tets in ctx->cav. */
+static i2m_dt_status_t link_collect(i2m_dt_ctx_t *ctx, struct i2m_dt_removal *rm, uint32_t v)
+{
+  const i2m_dt_t *dt = ctx->dt;
+  const uint32_t ns = ctx->ncav;
+  if (faces_prepare(rm, ns) != I2M_OK || ctx_grow_u32(&rm->link, &rm->cap_link, 3 * ns) != I2M_OK)
+    return I2M_DT_FULL;
+  if (4 * 3 * ns > rm->vcap) {
+    uint32_t cap = 256;
+    while (cap < 4 * 3 * ns) cap *= 2;
+    i2m_free(&rm->vseen);
+    i2m_free(&rm->vstamp_of);
+    rm->vcap = cap;
+    rm->vstamp = 0;
+    if (i2m_malloc(cap, sizeof *rm->vseen, &rm->vseen) != I2M_OK ||
+        i2m_calloc(cap, sizeof *rm->vstamp_of, &rm->vstamp_of) != I2M_OK)
+      return I2M_DT_FULL;
+  }
+  if (++rm->vstamp == 0) {
+    memset(rm->vstamp_of, 0, rm->vcap * sizeof *rm->vstamp_of);
+    rm->vstamp = 1;
+  }
+  rm->nlink = 0;
+  rm->nqueue = 0;
+  rm->ntets = 0;
+  for (uint32_t k = 0; k < ns; k++) {
+    const uint32_t t = ctx->cav[k], *tv = dt->tv + 4 * (size_t)t;
+    int iv = -1;
+    for (int i = 0; i < 4; i++) {
+      if (tv[i] == v) iv = i;
+      else link_add(rm, tv[i]);
+    }
+    if (iv < 0) return I2M_DT_FAILED;
+    uint32_t key[3];
+    face_key(tv, iv, key);
+    const uint32_t s = faces_slot(rm, key);
+    if (rm->faces[s].stamp == rm->fstamp) return I2M_DT_FAILED; /* a link face twice: corrupt star */
+    rm->faces[s] = (hole_face_t){{key[0], key[1], key[2]}, dt->tn[4 * (size_t)t + (uint32_t)iv], I2M_DT_NONE, rm->fstamp, 0};
+    if (queue_push(rm, tv, iv, s) != I2M_OK) return I2M_DT_FULL;
+  }
+  return I2M_DT_OK;
 }
 
 /* ---- step 1: the star of v, locked and marked.  A tet is marked only by a thread that holds
@@ -186,166 +256,281 @@ static i2m_dt_status_t star_collect(i2m_dt_ctx_t *ctx, uint32_t v)
   return I2M_DT_OK;
 }
 
-/* ---- step 2: local Delaunay tetrahedralization of the link vertices ---- */
-static i2m_dt_status_t local_triangulate(i2m_dt_ctx_t *ctx, struct i2m_dt_removal *rm, uint32_t v)
+/* ---- step 3: gift-wrapping ---- */
+
+/* The ball test of one tet against many points: with the tet's first vertex a as the
+ * origin, the insphere determinant is linear in the lifted row (x, |x|^2) of the point
+ * (x = e - a), so its four cofactors are computed once per tet and each point costs a dot
+ * product.  A semi-static bound certifies the sign; else the kernel's exact test decides. */
+typedef struct {
+  const double *a;
+  double c[4]; /* the cofactors of the rows (x, y, z, |x|^2) */
+  double p[4]; /* their permanents (the bound) */
+} ball_t;
+
+static double minor3(double r[3][4], int i, int j, int k, double *perm)
 {
-  i2m_dt_t *dt = ctx->dt;
-  local_reset(rm);
-  if (vmap_prepare(rm, 4 * ctx->ncav + 8) != I2M_OK) return I2M_DT_FULL;
-  if (ctx_grow_u32(&rm->lmap, &rm->cap_lmap, 4 * ctx->ncav + 8) != I2M_OK) return I2M_DT_FULL;
-  for (uint32_t b = 0; b < 8; b++) { /* box corners: same ids locally and in the main mesh */
-    uint32_t s = vmap_slot(rm, b);
-    rm->vmark_s[s] = rm->vstamp;
-    rm->vmark_v[s] = b;
-    rm->vmark_l[s] = b;
-    rm->lmap[b] = b;
+  const double m0 = r[1][j] * r[2][k] - r[1][k] * r[2][j];
+  const double m1 = r[1][i] * r[2][k] - r[1][k] * r[2][i];
+  const double m2 = r[1][i] * r[2][j] - r[1][j] * r[2][i];
+  *perm = fabs(r[0][i]) * (fabs(r[1][j] * r[2][k]) + fabs(r[1][k] * r[2][j])) +
+          fabs(r[0][j]) * (fabs(r[1][i] * r[2][k]) + fabs(r[1][k] * r[2][i])) +
+          fabs(r[0][k]) * (fabs(r[1][i] * r[2][j]) + fabs(r[1][j] * r[2][i]));
+  return r[0][i] * m0 - r[0][j] * m1 + r[0][k] * m2;
+}
+
+static void ball_prepare(const i2m_dt_t *dt, const uint32_t q[4], ball_t *B)
+{
+  double r[3][4];
+  B->a = i2m_dt_xyz(dt, q[0]);
+  for (int i = 0; i < 3; i++) {
+    const double *x = i2m_dt_xyz(dt, q[i + 1]);
+    for (int d = 0; d < 3; d++) r[i][d] = x[d] - B->a[d];
+    r[i][3] = r[i][0] * r[i][0] + r[i][1] * r[i][1] + r[i][2] * r[i][2];
   }
-  /* the link vertices, inserted in the order of their global ids: the new tets (their vertex
-   * order, their order) are then a function of the star, not of the tet the search began
-   * with, which differs between ranks that hold the same star */
-  rm->nlink = 0;
-  if (ctx_grow_u32(&rm->link, &rm->cap_link, 4 * ctx->ncav) != I2M_OK) return I2M_DT_FULL;
-  for (uint32_t k = 0; k < ctx->ncav; k++) {
-    const uint32_t *tv = dt->tv + 4 * (size_t)ctx->cav[k];
-    for (int i = 0; i < 4; i++) {
-      uint32_t w = tv[i];
-      if (w == v) continue;
-      uint32_t s = vmap_slot(rm, w);
-      if (rm->vmark_s[s] == rm->vstamp) continue;
-      rm->vmark_s[s] = rm->vstamp;
-      rm->vmark_v[s] = w;
-      rm->link[rm->nlink++] = w;
-    }
-  }
-  for (uint32_t a = 1; a < rm->nlink; a++) /* (a few dozen: insertion sort) */
-    for (uint32_t b = a; b > 0 && i2m_dt_gid(dt, rm->link[b]) < i2m_dt_gid(dt, rm->link[b - 1]); b--) {
-      const uint32_t x = rm->link[b];
-      rm->link[b] = rm->link[b - 1];
-      rm->link[b - 1] = x;
-    }
-  uint32_t hint = 0;
+  B->c[0] = -minor3(r, 1, 2, 3, &B->p[0]);
+  B->c[1] = minor3(r, 0, 2, 3, &B->p[1]);
+  B->c[2] = -minor3(r, 0, 1, 3, &B->p[2]);
+  B->c[3] = minor3(r, 0, 1, 2, &B->p[3]);
+}
+
+/* The sign of the tet's insphere test for point e (> 0: in the ball), 0 when the bound does
+ * not certify it.  (The determinant of the rows q1-a, q2-a, q3-a, e-a, lifted, has the
+ * opposite sign of the kernel's rows translated to e.) */
+static int ball_side(const ball_t *B, const double e[3])
+{
+  const double x = e[0] - B->a[0], y = e[1] - B->a[1], z = e[2] - B->a[2];
+  const double l = x * x + y * y + z * z;
+  const double det = x * B->c[0] + y * B->c[1] + z * B->c[2] + l * B->c[3];
+  const double bound = 64.0 * DBL_EPSILON * (fabs(x) * B->p[0] + fabs(y) * B->p[1] + fabs(z) * B->p[2] + l * B->p[3]);
+  return det > bound ? -1 : det < -bound ? 1 : 0;
+}
+
+/* The side of the open face's plane, for many points: n.(x - f), with the face's normal n
+ * computed once, certified by a semi-static bound; else the exact orientation decides. */
+typedef struct {
+  const double *f;
+  double n[3], p[3]; /* the normal and its components' permanents */
+  double sign;       /* +1 or -1: which side makes q with q[at] replaced positive */
+} plane_t;
+
+static void plane_prepare(const i2m_dt_t *dt, const uint32_t q[4], int at, plane_t *P)
+{
+  P->f = i2m_dt_xyz(dt, q[(at + 1) & 3]);
+  const double *g = i2m_dt_xyz(dt, q[(at + 2) & 3]), *h = i2m_dt_xyz(dt, q[(at + 3) & 3]);
+  const double u[3] = {g[0] - P->f[0], g[1] - P->f[1], g[2] - P->f[2]};
+  const double v[3] = {h[0] - P->f[0], h[1] - P->f[1], h[2] - P->f[2]};
+  P->n[0] = u[1] * v[2] - u[2] * v[1];
+  P->n[1] = u[2] * v[0] - u[0] * v[2];
+  P->n[2] = u[0] * v[1] - u[1] * v[0];
+  P->p[0] = fabs(u[1] * v[2]) + fabs(u[2] * v[1]);
+  P->p[1] = fabs(u[2] * v[0]) + fabs(u[0] * v[2]);
+  P->p[2] = fabs(u[0] * v[1]) + fabs(u[1] * v[0]);
+  P->sign = (at & 1) ? 1.0 : -1.0; /* (moving row at to the front: a cycle of at places) */
+}
+
+static int plane_side(const plane_t *P, const double e[3])
+{
+  const double x = e[0] - P->f[0], y = e[1] - P->f[1], z = e[2] - P->f[2];
+  const double det = P->sign * (x * P->n[0] + y * P->n[1] + z * P->n[2]);
+  const double bound = 16.0 * DBL_EPSILON * (fabs(x) * P->p[0] + fabs(y) * P->p[1] + fabs(z) * P->p[2]);
+  return det > bound ? 1 : det < -bound ? -1 : 0;
+}
+
+/* The apex of the tet on the open side of face o: the link vertex beyond the face (q with
+ * q[at] replaced by it positive) whose ball holds no other such vertex.  I2M_DT_NONE if none
+ * lies beyond (a corrupt star). */
+static uint32_t wrap_apex(const i2m_dt_t *dt, const struct i2m_dt_removal *rm, const open_face_t *o)
+{
+  uint32_t q[4], best = I2M_DT_NONE;
+  memcpy(q, o->q, sizeof q);
+  const int at = o->at;
+  plane_t P;
+  plane_prepare(dt, q, at, &P);
+  ball_t B;
+  bool ready = false; /* B is best's ball */
   for (uint32_t k = 0; k < rm->nlink; k++) {
     const uint32_t w = rm->link[k];
-    uint32_t lw = I2M_DT_NONE;
-    i2m_dt_status_t st = i2m_dt_insert_walk(&rm->lctx, i2m_dt_xyz(dt, w), i2m_dt_gid(dt, w), I2M_VK_FREE, hint, &lw);
-    if (st != I2M_DT_OK) return st == I2M_DT_FULL ? I2M_DT_FULL : I2M_DT_FAILED;
-    hint = rm->lctx.newt[0];
-    rm->vmark_l[vmap_slot(rm, w)] = lw;
-    rm->lmap[lw] = w;
-  }
-  return I2M_DT_OK;
-}
-
-static uint32_t local_id(const struct i2m_dt_removal *rm, uint32_t w) { return rm->vmark_l[vmap_slot(rm, w)]; }
-
-/* ---- step 3: the local tets on v's side of each link face, and everything reachable from
- * them without crossing the link ---- */
-static i2m_dt_status_t fill_select(i2m_dt_ctx_t *ctx, struct i2m_dt_removal *rm, uint32_t v)
-{
-  i2m_dt_t *dt = ctx->dt, *loc = rm->loc;
-  uint32_t nlt = i2m_dt_ntets_slots(loc);
-  if (lf_prepare(rm, ctx->ncav) != I2M_OK) return I2M_DT_FULL;
-  if (ctx_grow_u32(&rm->slot, &rm->cap_slot, nlt) != I2M_OK) return I2M_DT_FULL;
-  if (ctx_grow_u32(&rm->fill, &rm->cap_fill, nlt) != I2M_OK) return I2M_DT_FULL;
-  for (uint32_t s = 0; s < nlt; s++) rm->slot[s] = I2M_DT_NONE;
-  for (uint32_t k = 0; k < ctx->ncav; k++) { /* register the link faces */
-    uint32_t t = ctx->cav[k], key[3], n = 0, iv = 0;
-    for (uint32_t i = 0; i < 4; i++) {
-      uint32_t w = dt->tv[4 * t + i];
-      if (w == v) iv = i;
-      else key[n++] = local_id(rm, w);
-    }
-    sort3(key);
-    uint32_t s = lf_slot(rm, key);
-    if (rm->lf[s].used == rm->lfstamp) return I2M_DT_FAILED; /* a link face twice: corrupt star */
-    rm->lf[s].used = rm->lfstamp;
-    memcpy(rm->lf[s].key, key, sizeof key);
-    rm->lf[s].out = dt->tn[4 * t + iv];
-  }
-  rm->nfill = 0;
-  uint32_t nlink = 0;
-  for (uint32_t t = 0; t < nlt; t++) { /* seeds: local tets with a link face, on v's side */
-    if (!i2m_dt_alive(loc, t)) continue;
-    const uint32_t *lv = loc->tv + 4 * (size_t)t;
-    for (uint32_t i = 0; i < 4; i++) {
-      uint32_t key[3], n = 0;
-      for (uint32_t j = 0; j < 4; j++)
-        if (j != i) key[n++] = lv[j];
-      sort3(key);
-      if (rm->lf[lf_slot(rm, key)].used != rm->lfstamp) continue;
-      /* v's side: the local tet with lv[i] replaced by v keeps its positive orientation */
-      const double *q[4];
-      for (int j = 0; j < 4; j++) q[j] = i2m_dt_xyz(loc, lv[j]);
-      q[i] = i2m_dt_xyz(dt, v);
-      if (i2m_orient3d(q[0], q[1], q[2], q[3]) <= 0) continue;
-      nlink++;
-      if (rm->slot[t] == I2M_DT_NONE) {
-        rm->slot[t] = 0;
-        rm->fill[rm->nfill++] = t;
+    if (w == q[(at + 1) & 3] || w == q[(at + 2) & 3] || w == q[(at + 3) & 3]) continue;
+    const double *x = i2m_dt_xyz(dt, w);
+    int beyond = plane_side(&P, x);
+    if (beyond == 0) beyond = tet_orient_replace(dt, q, at, x);
+    if (beyond <= 0) continue;
+    if (best != I2M_DT_NONE) {
+      if (!ready) {
+        q[at] = best;
+        ball_prepare(dt, q, &B);
+        ready = true;
       }
+      int side = ball_side(&B, x);
+      if (side == 0) side = tet_insphere(dt, q, x, i2m_dt_gid(dt, w));
+      if (side <= 0) continue;
     }
+    best = w;
+    ready = false;
   }
-  if (nlink != ctx->ncav) return I2M_DT_FAILED; /* a link face missing from the local DT */
-  for (uint32_t k = 0; k < rm->nfill; k++) { /* flood fill inside the link */
-    uint32_t t = rm->fill[k];
-    for (uint32_t i = 0; i < 4; i++) {
-      uint32_t n = loc->tn[4 * t + i];
-      uint32_t key[3], c = 0;
-      for (uint32_t j = 0; j < 4; j++)
-        if (j != i) key[c++] = loc->tv[4 * t + j];
-      sort3(key);
-      if (rm->lf[lf_slot(rm, key)].used == rm->lfstamp) continue;
-      if (n == I2M_DT_NONE) return I2M_DT_FAILED; /* escaped to the box hull */
-      uint32_t u = n >> 2;
-      if (rm->slot[u] != I2M_DT_NONE) continue;
-      rm->slot[u] = 0;
-      rm->fill[rm->nfill++] = u;
+  return best;
+}
+
+static i2m_err_t tets_room(struct i2m_dt_removal *rm)
+{
+  if (rm->ntets < rm->cap_tets) return I2M_OK;
+  const uint32_t cap = rm->cap_tets ? 2 * rm->cap_tets : 64;
+  I2M_CALL(i2m_realloc(4 * (size_t)cap, sizeof *rm->tv, &rm->tv));
+  I2M_CALL(i2m_realloc(4 * (size_t)cap, sizeof *rm->tn, &rm->tn));
+  I2M_CALL(i2m_realloc(4 * (size_t)cap, sizeof *rm->made, &rm->made));
+  I2M_CALL(i2m_realloc(4 * (size_t)cap, sizeof *rm->perm, &rm->perm));
+  I2M_CALL(i2m_realloc(cap, sizeof *rm->order, &rm->order));
+  I2M_CALL(i2m_realloc(cap, sizeof *rm->rank_of, &rm->rank_of));
+  I2M_CALL(i2m_realloc(4 * (size_t)cap, sizeof *rm->cgid, &rm->cgid));
+  rm->cap_tets = cap;
+  return I2M_OK;
+}
+
+/* Face j of tet k made here meets face entry s: its neighbour is the outside (a link face)
+ * or the tet made earlier that opened s. */
+static void face_join(struct i2m_dt_removal *rm, uint32_t k, int j, hole_face_t *f)
+{
+  const uint32_t kj = 4 * k + (uint32_t)j;
+  f->closed = 1;
+  rm->made[kj] = f->owner != I2M_DT_NONE;
+  if (f->owner == I2M_DT_NONE) {
+    rm->tn[kj] = f->out;
+  } else {
+    rm->tn[kj] = f->owner;
+    rm->tn[f->owner] = kj;
+    rm->made[f->owner] = 1;
+  }
+}
+
+/* Wraps the hole: every open face gets the tet beyond it, whose other faces close open
+ * faces or open new ones, until none is open. */
+static i2m_dt_status_t wrap_hole(const i2m_dt_t *dt, struct i2m_dt_removal *rm)
+{
+  uint32_t used = rm->nqueue;
+  const uint32_t max_tets = rm->nlink * rm->nlink + 64; /* (a guard: holes here have a few dozen) */
+  for (uint32_t h = 0; h < rm->nqueue; h++) {
+    const open_face_t o = rm->queue[h]; /* (a copy: the queue grows) */
+    if (rm->faces[o.face].closed) continue;
+    const uint32_t apex = wrap_apex(dt, rm, &o);
+    if (apex == I2M_DT_NONE || rm->ntets >= max_tets) return I2M_DT_FAILED;
+    if (tets_room(rm) != I2M_OK) return I2M_DT_FULL;
+    const uint32_t k = rm->ntets++;
+    uint32_t *t = rm->tv + 4 * k;
+    memcpy(t, o.q, 4 * sizeof *t);
+    t[o.at] = apex;
+    face_join(rm, k, o.at, &rm->faces[o.face]);
+    for (int j = 0; j < 4; j++) {
+      if (j == o.at) continue;
+      uint32_t key[3];
+      face_key(t, j, key);
+      uint32_t s = faces_slot(rm, key);
+      hole_face_t *f = &rm->faces[s];
+      if (f->stamp == rm->fstamp) {
+        if (f->closed) return I2M_DT_FAILED; /* a face on three tets */
+        face_join(rm, k, j, f);
+        continue;
+      }
+      if (2 * ++used > rm->fcap) { /* (a hole far larger than its star's faces foretold) */
+        if (faces_grow(rm, h) != I2M_OK) return I2M_DT_FULL;
+        s = faces_slot(rm, key);
+        f = &rm->faces[s];
+      }
+      *f = (hole_face_t){{key[0], key[1], key[2]}, I2M_DT_NONE, 4 * k + (uint32_t)j, rm->fstamp, 0};
+      /* the tet beyond face j, seen from there: two of the face's vertices swapped, so that
+       * an apex beyond the face (opposite t[j]) makes it positive */
+      uint32_t q[4];
+      memcpy(q, t, sizeof q);
+      const int a = (j + 1) & 3, b = (j + 2) & 3;
+      q[a] = t[b];
+      q[b] = t[a];
+      if (queue_push(rm, q, j, s) != I2M_OK) return I2M_DT_FULL;
     }
   }
   return I2M_DT_OK;
 }
 
-/* ---- step 4: splice the fill into the main mesh ---- */
-static i2m_dt_status_t fill_commit(i2m_dt_ctx_t *ctx, struct i2m_dt_removal *rm, uint32_t v)
+/* ---- step 4: canonical form, then the splice into the main mesh ---- */
+
+/* The 12 even permutations of four places (they keep a tet's orientation). */
+static const uint8_t EVEN_PERMS[12][4] = {{0, 1, 2, 3}, {0, 2, 3, 1}, {0, 3, 1, 2}, {1, 0, 3, 2}, {1, 2, 0, 3}, {1, 3, 2, 0},
+                                         {2, 0, 1, 3}, {2, 1, 3, 0}, {2, 3, 0, 1}, {3, 0, 2, 1}, {3, 1, 0, 2}, {3, 2, 1, 0}};
+
+/* Tet k's vertices in canonical order: the even permutation that puts the smallest global id
+ * first and the smallest of the other three second (rm->perm[4k+i]: old index of place i). */
+static void canonical_perm(const i2m_dt_t *dt, struct i2m_dt_removal *rm, uint32_t k)
 {
-  i2m_dt_t *dt = ctx->dt, *loc = rm->loc;
-  uint32_t nf = rm->nfill, ns = ctx->ncav;
+  const uint32_t *t = rm->tv + 4 * k;
+  i2m_gidx_t g[4];
+  for (int i = 0; i < 4; i++) g[i] = i2m_dt_gid(dt, t[i]);
+  int best = 0;
+  for (int p = 1; p < 12; p++) {
+    const uint8_t *a = EVEN_PERMS[p], *b = EVEN_PERMS[best];
+    if (g[a[0]] < g[b[0]] || (g[a[0]] == g[b[0]] && g[a[1]] < g[b[1]])) best = p;
+  }
+  memcpy(rm->perm + 4 * k, EVEN_PERMS[best], 4);
+}
+
+/* The tets made, in the order of their canonical global ids (insertion sort: a few dozen). */
+static void canonical_order(const i2m_dt_t *dt, struct i2m_dt_removal *rm)
+{
+  for (uint32_t k = 0; k < rm->ntets; k++) {
+    canonical_perm(dt, rm, k);
+    for (int i = 0; i < 4; i++) rm->cgid[4 * k + (uint32_t)i] = i2m_dt_gid(dt, rm->tv[4 * k + rm->perm[4 * k + (uint32_t)i]]);
+    uint32_t r = k;
+    for (; r > 0; r--) {
+      const i2m_gidx_t *a = rm->cgid + 4 * (size_t)rm->order[r - 1], *b = rm->cgid + 4 * (size_t)k;
+      int i = 0;
+      while (i < 3 && a[i] == b[i]) i++;
+      if (a[i] < b[i]) break;
+      rm->order[r] = rm->order[r - 1];
+    }
+    rm->order[r] = k;
+  }
+  for (uint32_t r = 0; r < rm->ntets; r++) rm->rank_of[rm->order[r]] = r;
+}
+
+/* The hole's tets into the main mesh: the star's slots first, then new ones; the star's
+ * slots left over are killed. */
+static i2m_dt_status_t hole_commit(i2m_dt_ctx_t *ctx, struct i2m_dt_removal *rm, uint32_t v)
+{
+  i2m_dt_t *dt = ctx->dt;
+  const uint32_t nf = rm->ntets, ns = ctx->ncav;
   if (!ctx_ensure_slots(ctx, nf > ns ? nf - ns : 0, 0)) return I2M_DT_FULL;
   if (ctx_grow_u32(&ctx->newt, &ctx->cap_new, nf) != I2M_OK) return I2M_DT_FULL;
   if (ctx_grow_u32(&ctx->slots.pool, &ctx->slots.cap_pool, ctx->slots.npool + ns + 1) != I2M_OK) return I2M_DT_FULL;
   if (ctx_vpool_push(ctx, v) != I2M_OK) return I2M_DT_FULL;
+  canonical_order(dt, rm);
   ctx->nnew = 0;
-  for (uint32_t k = 0; k < nf; k++) {
-    uint32_t t = k < ns ? ctx->cav[k] : ctx_tet_slot(ctx);
+  for (uint32_t r = 0; r < nf; r++) {
+    const uint32_t t = r < ns ? ctx->cav[r] : ctx_tet_slot(ctx);
     meta_store(dt, t, meta_reborn(i2m_dt_meta(dt, t)));
-    rm->slot[rm->fill[k]] = t;
     ctx->newt[ctx->nnew++] = t;
   }
-  for (uint32_t k = nf; k < ns; k++) {
-    uint32_t t = ctx->cav[k];
+  for (uint32_t r = nf; r < ns; r++) {
+    const uint32_t t = ctx->cav[r];
     meta_store(dt, t, meta_killed(i2m_dt_meta(dt, t)));
     ctx->slots.pool[ctx->slots.npool++] = t;
   }
-  for (uint32_t k = 0; k < nf; k++) {
-    uint32_t lt = rm->fill[k], t = rm->slot[lt];
+  for (uint32_t r = 0; r < nf; r++) {
+    const uint32_t k = rm->order[r], t = ctx->newt[r];
+    const uint8_t *pk = rm->perm + 4 * k;
     for (uint32_t i = 0; i < 4; i++) {
-      uint32_t w = rm->lmap[loc->tv[4 * lt + i]];
-      dt->tv[4 * t + i] = w;
+      const uint32_t w = rm->tv[4 * k + pk[i]];
+      dt->tv[4 * (size_t)t + i] = w;
       dt->vtet[w] = t;
     }
     for (uint32_t i = 0; i < 4; i++) {
-      uint32_t key[3], c = 0;
-      for (uint32_t j = 0; j < 4; j++)
-        if (j != i) key[c++] = loc->tv[4 * lt + j];
-      sort3(key);
-      const link_face_t *f = &rm->lf[lf_slot(rm, key)];
-      if (f->used == rm->lfstamp) { /* glue to the outside */
-        dt->tn[4 * t + i] = f->out;
-        if (f->out < I2M_DT_REMOTE) dt->tn[f->out] = 4 * t + i;
-      } else {
-        uint32_t n = loc->tn[4 * lt + i];
-        dt->tn[4 * t + i] = 4 * rm->slot[n >> 2] + (n & 3);
+      const uint32_t word = rm->tn[4 * k + pk[i]];
+      if (!rm->made[4 * k + pk[i]]) { /* the outside (or the box's hull, or another rank's) */
+        dt->tn[4 * (size_t)t + i] = word;
+        if (word < I2M_DT_REMOTE) dt->tn[word] = 4 * t + i;
+        continue;
       }
+      const uint32_t k2 = word >> 2, j2 = word & 3;
+      uint32_t i2 = 0;
+      while (rm->perm[4 * k2 + i2] != j2) i2++;
+      dt->tn[4 * (size_t)t + i] = 4 * ctx->newt[rm->rank_of[k2]] + i2;
     }
   }
   dt->vkind[v] = I2M_VK_DEAD;
@@ -362,11 +547,11 @@ i2m_dt_status_t i2m_dt_remove(i2m_dt_ctx_t *ctx, uint32_t v)
   journal_forget(ctx);
   if (v < 8 || v >= i2m_dt_nverts_slots(dt) || dt->vkind[v] == I2M_VK_DEAD || dt->vkind[v] == I2M_VK_BOX)
     return I2M_DT_STALE;
-  if (!ctx->rm && removal_create(dt, &ctx->rm) != I2M_OK) return I2M_DT_FULL;
+  if (!ctx->rm && removal_create(&ctx->rm) != I2M_OK) return I2M_DT_FULL;
   i2m_dt_status_t st = star_collect(ctx, v);
-  if (st == I2M_DT_OK) st = local_triangulate(ctx, ctx->rm, v);
-  if (st == I2M_DT_OK) st = fill_select(ctx, ctx->rm, v);
-  if (st == I2M_DT_OK) st = fill_commit(ctx, ctx->rm, v);
+  if (st == I2M_DT_OK) st = link_collect(ctx, ctx->rm, v);
+  if (st == I2M_DT_OK) st = wrap_hole(dt, ctx->rm);
+  if (st == I2M_DT_OK) st = hole_commit(ctx, ctx->rm, v);
   if (st != I2M_DT_OK) {
     for (uint32_t k = 0; k < ctx->ncav; k++) {
       uint32_t t = ctx->cav[k];

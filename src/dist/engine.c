@@ -1006,10 +1006,11 @@ i2m_err_t i2m_dist_perturb_slivers(const i2m_par_t *par, i2m_refine_t *r, const 
   for (int k = 0; k < 2 && err == I2M_OK; k++) {
     if (k == 1 && stages[1] <= stages[0]) break;
     int64_t first = 0;
+    bool wide = false; /* (after a round that kept no move, one wide round: as on one process) */
     for (int n = 0; n < SLIVER_ROUNDS && err == I2M_OK; n++, round++) { /* rounds while moves are kept */
       int64_t before[2], after[2];
       i2m_refine_slivers_dist_moves(r, &before[0], &before[1]);
-      i2m_refine_slivers_dist_round(r, stages[k], round);
+      i2m_refine_slivers_dist_round(r, stages[k], round, wide);
       err = engine_run(&E, &to, &team);
       i2m_threads_report_free(&team);
       i2m_refine_slivers_dist_moves(r, &after[0], &after[1]);
@@ -1017,7 +1018,9 @@ i2m_err_t i2m_dist_perturb_slivers(const i2m_par_t *par, i2m_refine_t *r, const 
       i2m_par_sum_i64(par, &kept, 1);
       i2m_debug("slivers: stage %g deg, round %d: %lld moves kept", stages[k], round, (long long)kept);
       if (n == 0) first = kept;
-      if (kept == 0 || kept * SLIVER_TAIL < first) break;
+      if (kept == 0 && !wide) wide = true;
+      else if (kept == 0 || kept * SLIVER_TAIL < first) break;
+      else wide = false;
     }
   }
   const i2m_err_t end = i2m_refine_slivers_dist_end(r, st);

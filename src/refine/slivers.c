@@ -26,6 +26,8 @@
 #include <string.h>
 
 #define MOVES_PER_VERTEX 8 /* random targets tried per vertex of a sliver */
+#define WIDE_MOVES 32      /* in a wide round (after a round that kept no move): more, and farther */
+#define WIDE_REACH 0.5     /*   up to this fraction of the shortest edge (else 0.3) */
 #define ROUNDS 20          /* rounds over the slivers left (later ones are short) */
 #define WALK_STEPS 64      /* a target farther than this from the vertex's old star: deferred */
 #define FIRST_STAGE 5.0    /* degrees: a higher bound is reached after the slivers below this */
@@ -61,6 +63,7 @@ struct sliver_pass {
   double bound, final_bound, t0; /* the stage's bound, the one asked for */
   int round, stage_start;        /* rounds so far (they seed the moves); the stage's first */
   int64_t kept_before_round;
+  bool wide;                     /* this round tries WIDE_MOVES targets up to WIDE_REACH */
   perturb_t *per;        /* [nworkers] */
   sliver_list_t list;    /* the round's slivers, in order */
   uint32_t *first;       /* [ntiles + 1]: tile id's slivers are by_tile[first[id] .. first[id + 1]) */
@@ -326,12 +329,16 @@ static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, u
   return note_created(P, label) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
 }
 
-/* Do the changed tets pass every rule, with their smallest dihedral angle above the star's
- * worst (their largest cosine below floor_cos)?  1 yes, 0 no, -1 the rules cannot tell
- * inside the zone.  The first `cached` changed tets' cosines are P->hole_cos's (a removal's
- * tets, the same for every trial of its vertex, unless the trial took their slots).  The
- * changed tets from `unlabelled` on get their labels once the angles pass (most trials fail
- * on the angles, and need none). */
+/* Do the changed tets pass every rule, the output tets among them with their smallest
+ * dihedral angle above the worst of the star's output tets (their largest cosine below
+ * floor_cos)?  1 yes, 0 no, -1 the rules cannot tell inside the zone.  The first `cached`
+ * changed tets' cosines are P->hole_cos's (a removal's tets, the same for every trial of its
+ * vertex, unless the trial took their slots).  The changed tets from `unlabelled` on get
+ * their labels once the angles pass (most trials fail on the angles, and need none); a tet
+ * below the floor is labelled first, to tell whether it is an output tet.  (Tets outside every
+ * label do not count, either way: with them in the floor, a surface vertex whose star held an
+ * outside sliver could make an output tet nearly as flat, and the second stage made tets below
+ * the first stage's 5 degrees again, 82 on the liver at 6 M tets in its first round.) */
 static int changed_ok(perturb_t *P, double floor_cos, uint32_t cached, uint32_t unlabelled)
 {
   const i2m_dt_t *dt = P->w->r->dt;
@@ -339,7 +346,9 @@ static int changed_ok(perturb_t *P, double floor_cos, uint32_t cached, uint32_t 
     const uint32_t t = P->changed[k];
     if (!i2m_dt_alive(dt, t)) continue; /* (a removal's tet the insertion took again) */
     if (k < cached && i2m_dt_meta(dt, t) != P->hole_meta[k]) continue; /* (its slot, a new tet's: checked below) */
-    if ((k < cached ? P->hole_cos[k] : tet_max_cosine(dt, t)) >= floor_cos) return 0;
+    if ((k < cached ? P->hole_cos[k] : tet_max_cosine(dt, t)) < floor_cos) continue;
+    if (k >= unlabelled) label_tet(P->w->r, t);
+    if (tinfo(dt, t)->label != 0) return 0;
   }
   for (uint32_t k = unlabelled; k < P->nchanged; k++)
     if (i2m_dt_alive(dt, P->changed[k])) label_tet(P->w->r, P->changed[k]);
@@ -592,12 +601,14 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
       continue;
     }
     if (star_of(P, v) != I2M_OK) return MOVE_ERROR;
-    double floor_cos = -1.0, lmin2 = INFINITY; /* the star's worst angle, as its cosine */
+    double floor_cos = -1.0, lmin2 = INFINITY; /* the worst angle of the star's output tets, as its cosine */
     const double *x = i2m_dt_xyz(dt, v);
     for (uint32_t k = 0; k < P->nstar; k++) {
       const uint32_t t = P->star[k], *tv = dt->tv + 4 * (size_t)t;
-      const double c = tet_max_cosine(dt, t);
-      floor_cos = c > floor_cos ? c : floor_cos;
+      if (tet_kept(dt, t)) {
+        const double c = tet_max_cosine(dt, t);
+        floor_cos = c > floor_cos ? c : floor_cos;
+      }
       for (int j = 0; j < 4; j++)
         if (tv[j] != v && tv[j] >= 8) { /* (box corners are far) */
           const double d2 = i2m_dist2(x, i2m_dt_xyz(dt, tv[j]));
@@ -608,14 +619,17 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
     const double lmin = sqrt(lmin2);
     mover_t M;
     mover_begin(w->r, v, &M);
-    for (int m = 0; m < MOVES_PER_VERTEX; m++) {
-      /* a random direction, at a distance from 0.05 to 0.3 of the shortest edge */
+    const bool wide = w->r->slivers->wide;
+    const int targets = wide ? WIDE_MOVES : MOVES_PER_VERTEX;
+    const double reach = wide ? WIDE_REACH : 0.3;
+    for (int m = 0; m < targets; m++) {
+      /* a random direction, at a distance from 0.05 to `reach` of the shortest edge */
       double d[3], n2;
       do {
         for (int a = 0; a < 3; a++) d[a] = 2.0 * uniform01(&P->rng) - 1.0;
         n2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
       } while (n2 > 1.0 || n2 < 1e-6);
-      const double len = lmin * (0.05 + 0.25 * uniform01(&P->rng)) / sqrt(n2);
+      const double len = lmin * (0.05 + (reach - 0.05) * uniform01(&P->rng)) / sqrt(n2);
       double p[3] = {M.x0[0] + len * d[0], M.x0[1] + len * d[1], M.x0[2] + len * d[2]};
       if (surface && !onto_patch(w->r, M.g.tag, p)) continue;
       const int got = try_target(P, &M, p, floor_cos);
@@ -803,12 +817,17 @@ i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
   return I2M_OK;
 }
 
+/* Rounds go on while slivers are left and the last round kept a move; after a round that
+ * kept none, one wide round (more targets, farther) before the stage ends: the liver at 6 M
+ * tets kept 7 tets below 5 degrees after a round kept nothing, and one of them (1.7 degrees)
+ * to the end of the pass. */
 bool i2m_refine_slivers_has_work(const i2m_refine_t *r)
 {
   const struct sliver_pass *S = r->slivers;
   int64_t tried, kept;
   moves_so_far(r, S, &tried, &kept);
-  return S->list.n > 0 && S->round - S->stage_start < ROUNDS && (S->round == S->stage_start || kept > S->kept_before_round);
+  const bool stalled = S->round > S->stage_start && kept == S->kept_before_round;
+  return S->list.n > 0 && S->round - S->stage_start < ROUNDS && !(stalled && S->wide);
 }
 
 /* The round's slivers grouped by tile (a stable counting sort: each tile's stay in order). */
@@ -833,8 +852,10 @@ i2m_err_t i2m_refine_slivers_phase(i2m_refine_t *r, int color, const uint32_t **
   struct sliver_pass *S = r->slivers;
   tiling_t *g = r->tiling;
   if (color == 0) {
-    int64_t tried;
-    moves_so_far(r, S, &tried, &S->kept_before_round);
+    int64_t tried, kept;
+    moves_so_far(r, S, &tried, &kept);
+    S->wide = S->round > S->stage_start && kept == S->kept_before_round;
+    S->kept_before_round = kept;
     i2m_debug("slivers: round %d, below %g deg: %zu slivers; %lld moves tried, %lld kept so far, %.2f s", S->round, S->bound,
               S->list.n, (long long)tried, (long long)S->kept_before_round, i2m_wtime() - S->t0);
     I2M_CALL(group_by_tile(r, S));
@@ -980,10 +1001,11 @@ i2m_err_t i2m_refine_slivers_dist_begin(i2m_refine_t *r, double bound)
   return err;
 }
 
-void i2m_refine_slivers_dist_round(i2m_refine_t *r, double bound, int round)
+void i2m_refine_slivers_dist_round(i2m_refine_t *r, double bound, int round, bool wide)
 {
   r->slivers->bound = bound;
   r->slivers->round = round;
+  r->slivers->wide = wide;
 }
 
 /* Tile id's slivers now, in order. */

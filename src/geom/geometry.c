@@ -140,9 +140,11 @@ void i2m_tet_dihedral_cosines(const double a[3], const double b[3], const double
     sub3(p[fv[f][1]], p[fv[f][0]], e1);
     sub3(p[fv[f][2]], p[fv[f][0]], e2);
     cross3(e1, e2, n[f]);
-    double l = sqrt(dot3(n[f], n[f]));
-    if (l > 0)
-      for (int k = 0; k < 3; k++) n[f][k] /= l;
+    const double l = sqrt(dot3(n[f], n[f]));
+    if (l > 0) {
+      const double inv = 1.0 / l; /* (one division, not three) */
+      for (int k = 0; k < 3; k++) n[f][k] *= inv;
+    }
   }
   /* the dihedral angle at edge (i,j) is between the faces opposite the other two vertices:
    * edges ab, ac, ad, bc, bd, cd <-> face pairs (2,3), (1,3), (1,2), (0,3), (0,2), (0,1) */

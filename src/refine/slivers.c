@@ -66,6 +66,8 @@ struct sliver_pass {
   bool wide;                     /* this round tries WIDE_MOVES targets up to WIDE_REACH */
   perturb_t *per;        /* [nworkers] */
   sliver_list_t list;    /* the round's slivers, in order */
+  uint64_t *seen_bits;   /* a bit per tet slot, all clear between rounds (collect_after_round) */
+  size_t nseen_bits;
   uint32_t *first;       /* [ntiles + 1]: tile id's slivers are by_tile[first[id] .. first[id + 1]) */
   sliver_t *by_tile;     /* [list.n] */
   uint32_t *active, nactive;
@@ -704,12 +706,6 @@ static i2m_err_t collect_all(const i2m_refine_t *r, double bound, sliver_list_t 
   return I2M_OK;
 }
 
-static int cmp_u32(const void *x, const void *y)
-{
-  const uint32_t a = *(const uint32_t *)x, b = *(const uint32_t *)y;
-  return (a > b) - (a < b);
-}
-
 /* The list after a round, without a pass over the mesh: a tet no move changed has its angle
  * still, so the slivers left are the list's untouched ones (same slot generation) and the
  * tets the moves made (each slot once: a made slot is newer than the list's entries). */
@@ -729,13 +725,25 @@ static i2m_err_t collect_after_round(i2m_refine_t *r, struct sliver_pass *S)
     P0->ntouched += P->ntouched;
     P->ntouched = 0;
   }
-  if (P0->ntouched > 1) qsort(P0->touched, P0->ntouched, sizeof *P0->touched, cmp_u32);
+  /* each slot once (a bit per slot; the list is sorted below, so the order here is free) */
+  const size_t words = i2m_dt_ntets_slots(dt) / 64 + 1;
+  if (words > S->nseen_bits) {
+    i2m_free(&S->seen_bits);
+    I2M_CALL(i2m_calloc(words, sizeof *S->seen_bits, &S->seen_bits));
+    S->nseen_bits = words;
+  }
   const double cos_bound = cos(S->bound * (I2M_PI / 180.0));
+  i2m_err_t err = I2M_OK;
   for (uint32_t k = 0; k < P0->ntouched; k++) {
     const uint32_t t = P0->touched[k];
-    if ((k == 0 || P0->touched[k - 1] != t) && tet_kept(dt, t)) I2M_CALL(consider(dt, t, tet_max_cosine(dt, t), cos_bound, L));
+    const uint64_t bit = (uint64_t)1 << (t & 63);
+    if (S->seen_bits[t >> 6] & bit) continue;
+    S->seen_bits[t >> 6] |= bit;
+    if (err == I2M_OK && tet_kept(dt, t)) err = consider(dt, t, tet_max_cosine(dt, t), cos_bound, L);
   }
+  for (uint32_t k = 0; k < P0->ntouched; k++) S->seen_bits[P0->touched[k] >> 6] = 0;
   P0->ntouched = 0;
+  I2M_CALL(err);
   if (L->n > 1) qsort(L->a, L->n, sizeof *L->a, cmp_sliver);
   return I2M_OK;
 }
@@ -760,6 +768,7 @@ static void pass_free(i2m_refine_t *r)
   }
   i2m_free(&S->per);
   i2m_free(&S->list.a);
+  i2m_free(&S->seen_bits);
   i2m_free(&S->first);
   i2m_free(&S->by_tile);
   i2m_free(&S->active);

@@ -968,9 +968,10 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
 /* ---- the sliver perturbation under MPI ---- */
 
 #define SLIVER_FIRST_STAGE 5.0 /* degrees (as one process: the worst first) */
-#define SLIVER_ROUNDS 20
-#define SLIVER_TAIL 50 /* a stage ends when a round keeps fewer than 1/50 of its first round's moves: each
-                          round moves blocks between ranks, the last few moves are not worth it */
+#define SLIVER_ROUNDS 20 /* per stage, as one process: rounds while moves are kept.  (A stage
+                            that ended when a round kept under 1/50 of its first's moves left the
+                            liver at delta 1, 3 ranks, 212 tets below 15 degrees, smallest 9.6,
+                            against 2 and 14.8 without that end, for 17% more time in the pass.) */
 
 /* This rank's sliver figures summed (counts, moves) or at their extreme (angles) over the ranks. */
 static void reduce_sliver_stats(const i2m_par_t *par, i2m_sliver_stats_t *st)
@@ -1005,7 +1006,6 @@ i2m_err_t i2m_dist_perturb_slivers(const i2m_par_t *par, i2m_refine_t *r, const 
   int round = 0;
   for (int k = 0; k < 2 && err == I2M_OK; k++) {
     if (k == 1 && stages[1] <= stages[0]) break;
-    int64_t first = 0;
     bool wide = false; /* (after a round that kept no move, one wide round: as on one process) */
     for (int n = 0; n < SLIVER_ROUNDS && err == I2M_OK; n++, round++) { /* rounds while moves are kept */
       int64_t before[2], after[2];
@@ -1017,10 +1017,8 @@ i2m_err_t i2m_dist_perturb_slivers(const i2m_par_t *par, i2m_refine_t *r, const 
       int64_t kept = after[1] - before[1];
       i2m_par_sum_i64(par, &kept, 1);
       i2m_debug("slivers: stage %g deg, round %d: %lld moves kept", stages[k], round, (long long)kept);
-      if (n == 0) first = kept;
-      if (kept == 0 && !wide) wide = true;
-      else if (kept == 0 || kept * SLIVER_TAIL < first) break;
-      else wide = false;
+      if (kept == 0 && wide) break;
+      wide = kept == 0;
     }
   }
   const i2m_err_t end = i2m_refine_slivers_dist_end(r, st);

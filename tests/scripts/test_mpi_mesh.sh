@@ -6,8 +6,8 @@
 # timeout.  Every mesh (stitched by rank 0, or written as .pvtu pieces) must meet every
 # guarantee of the one-process mesh (guarantees.sh, and every image component of >= 10,000
 # voxels in one piece), and its element count, per-label volumes (labels of >= 1,000 voxels)
-# and 99th-percentile interface distance must lie within 1% of the one-process run's with the
-# same subregions (--deterministic on one process: the same coarse mesh, octree and background
+# must lie within 1% of the one-process run's, and its 99th-percentile interface distance no
+# more than 1% above it (a closer mesh passes), with the same subregions (--deterministic on one process: the same coarse mesh, octree and background
 # bound; the default one-process run, which needs no subregions, is shown beside it).  The run
 # must really be distributed: every rank ran tasks and inserted points, the ranks' insertions
 # add up to within 10% of the one process's, and some rank answered a request for submeshes
@@ -40,7 +40,12 @@ bad = []
 def within(what, a, b, tol):
     if abs(a - b) > tol * abs(b): bad.append("%s %.6g vs %.6g one process (more than %g%%)" % (what, a, b, 100 * tol))
 within("tets", run["mesh"]["tetrahedra"], ref["mesh"]["tetrahedra"], 0.01)
-within("p99 distance", run["fidelity"]["hausdorff"]["p99_mm"], ref["fidelity"]["hausdorff"]["p99_mm"], 0.01)
+# the 99th-percentile distance may not be more than 1% worse (larger); a closer mesh passes: it
+# varies by about +-1% between meshes made the same way (shells: 0.3189-0.3225 mm over eight
+# runs at 1-4 ranks and one process), so a reference at the top of that range failed ranks
+# whose meshes followed the image more closely
+p99, p99_ref = run["fidelity"]["hausdorff"]["p99_mm"], ref["fidelity"]["hausdorff"]["p99_mm"]
+if p99 > 1.01 * p99_ref: bad.append("p99 distance %.6g vs %.6g one process (more than 1%% worse)" % (p99, p99_ref))
 rl = {l["label"]: l for l in ref["fidelity"]["labels"]}
 for l in run["fidelity"]["labels"]:
     if l["voxels"] >= 1000 and l["label"] in rl:

@@ -26,8 +26,10 @@
 #include <string.h>
 
 #define MOVES_PER_VERTEX 8 /* random targets tried per vertex of a sliver */
+#define NEAR 0.2           /* at a distance from NEAR to REACH times the vertex's shortest edge */
+#define REACH 0.5
 #define WIDE_MOVES 32      /* in a wide round (after a round that kept no move): more, and farther */
-#define WIDE_REACH 0.5     /*   up to this fraction of the shortest edge (else 0.3) */
+#define WIDE_REACH 0.7
 #define ROUNDS 20          /* rounds over the slivers left (later ones are short) */
 #define WALK_STEPS 64      /* a target farther than this from the vertex's old star: deferred */
 #define FIRST_STAGE 5.0    /* degrees: a higher bound is reached after the slivers below this */
@@ -623,15 +625,15 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
     mover_begin(w->r, v, &M);
     const bool wide = w->r->slivers->wide;
     const int targets = wide ? WIDE_MOVES : MOVES_PER_VERTEX;
-    const double reach = wide ? WIDE_REACH : 0.3;
+    const double reach = wide ? WIDE_REACH : REACH;
     for (int m = 0; m < targets; m++) {
-      /* a random direction, at a distance from 0.05 to `reach` of the shortest edge */
+      /* a random direction, at a distance from NEAR to `reach` times the shortest edge */
       double d[3], n2;
       do {
         for (int a = 0; a < 3; a++) d[a] = 2.0 * uniform01(&P->rng) - 1.0;
         n2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
       } while (n2 > 1.0 || n2 < 1e-6);
-      const double len = lmin * (0.05 + (reach - 0.05) * uniform01(&P->rng)) / sqrt(n2);
+      const double len = lmin * (NEAR + (reach - NEAR) * uniform01(&P->rng)) / sqrt(n2);
       double p[3] = {M.x0[0] + len * d[0], M.x0[1] + len * d[1], M.x0[2] + len * d[2]};
       if (surface && !onto_patch(w->r, M.g.tag, p)) continue;
       const int got = try_target(P, &M, p, floor_cos);

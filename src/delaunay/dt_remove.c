@@ -45,7 +45,6 @@ struct i2m_dt_removal {
   uint32_t ntets, cap_tets;
   uint32_t *order, *rank_of; /* canonical order of the tets made, and its inverse */
   uint8_t *perm;      /* [4k+i] the old index of canonical position i */
-  i2m_gidx_t *cgid;   /* [4k+i] the global ids in canonical order */
   uint32_t *link;     /* the link vertices */
   uint32_t nlink, cap_link;
   uint32_t *vseen;    /* small open hash of the link vertices seen */
@@ -64,7 +63,6 @@ void removal_free(struct i2m_dt_removal **rmp)
   i2m_free(&rm->order);
   i2m_free(&rm->rank_of);
   i2m_free(&rm->perm);
-  i2m_free(&rm->cgid);
   i2m_free(&rm->link);
   i2m_free(&rm->vseen);
   i2m_free(&rm->vstamp_of);
@@ -382,7 +380,6 @@ static i2m_err_t tets_room(struct i2m_dt_removal *rm)
   I2M_CALL(i2m_realloc(4 * (size_t)cap, sizeof *rm->perm, &rm->perm));
   I2M_CALL(i2m_realloc(cap, sizeof *rm->order, &rm->order));
   I2M_CALL(i2m_realloc(cap, sizeof *rm->rank_of, &rm->rank_of));
-  I2M_CALL(i2m_realloc(4 * (size_t)cap, sizeof *rm->cgid, &rm->cgid));
   rm->cap_tets = cap;
   return I2M_OK;
 }
@@ -471,20 +468,27 @@ static void canonical_perm(const i2m_dt_t *dt, struct i2m_dt_removal *rm, uint32
   memcpy(rm->perm + 4 * k, EVEN_PERMS[best], 4);
 }
 
+/* The global id at canonical place i of tet k made here. */
+static i2m_gidx_t canonical_gid(const i2m_dt_t *dt, const struct i2m_dt_removal *rm, uint32_t k, int i)
+{
+  return i2m_dt_gid(dt, rm->tv[4 * k + rm->perm[4 * k + (uint32_t)i]]);
+}
+
+/* Does tet a made here come before tet b (their canonical global ids, lexicographically)? */
+static bool canonical_before(const i2m_dt_t *dt, const struct i2m_dt_removal *rm, uint32_t a, uint32_t b)
+{
+  int i = 0;
+  while (i < 3 && canonical_gid(dt, rm, a, i) == canonical_gid(dt, rm, b, i)) i++;
+  return canonical_gid(dt, rm, a, i) < canonical_gid(dt, rm, b, i);
+}
+
 /* The tets made, in the order of their canonical global ids (insertion sort: a few dozen). */
 static void canonical_order(const i2m_dt_t *dt, struct i2m_dt_removal *rm)
 {
   for (uint32_t k = 0; k < rm->ntets; k++) {
     canonical_perm(dt, rm, k);
-    for (int i = 0; i < 4; i++) rm->cgid[4 * k + (uint32_t)i] = i2m_dt_gid(dt, rm->tv[4 * k + rm->perm[4 * k + (uint32_t)i]]);
     uint32_t r = k;
-    for (; r > 0; r--) {
-      const i2m_gidx_t *a = rm->cgid + 4 * (size_t)rm->order[r - 1], *b = rm->cgid + 4 * (size_t)k;
-      int i = 0;
-      while (i < 3 && a[i] == b[i]) i++;
-      if (a[i] < b[i]) break;
-      rm->order[r] = rm->order[r - 1];
-    }
+    for (; r > 0 && canonical_before(dt, rm, k, rm->order[r - 1]); r--) rm->order[r] = rm->order[r - 1];
     rm->order[r] = k;
   }
   for (uint32_t r = 0; r < rm->ntets; r++) rm->rank_of[rm->order[r]] = r;

@@ -263,10 +263,8 @@ static uint32_t tile_start_near(const i2m_refine_worker_t *w, const double x[3])
   for (uint32_t i = 0; i < tl->ntets; i++) {
     const uint32_t t = tl->tets[i].t;
     if (i2m_dt_meta(dt, t) != tl->tets[i].meta) continue;
-    const uint32_t *v = dt->tv + 4 * (size_t)t;
-    double c[3] = {0, 0, 0};
-    for (int k = 0; k < 4; k++)
-      for (int a = 0; a < 3; a++) c[a] += 0.25 * i2m_dt_xyz(dt, v[k])[a];
+    double c[3];
+    i2m_dt_centroid(dt, t, c);
     const double d = i2m_dist2(c, x);
     if (d < dmin) {
       dmin = d;

@@ -1,5 +1,6 @@
 /* Threads layer: the cores a process may use and binding threads to them (hwloc). */
 #include <hwloc.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 
@@ -18,8 +19,27 @@ static int count_cores(hwloc_topology_t topo, hwloc_bitmap_t allowed)
   return n;
 }
 
+/* The cores the process was given, as they were the first time a pinning opened: later the
+ * process's own threads are bound (the main thread too), and their bindings are not what the
+ * launcher gave. */
+static pthread_once_t given_once = PTHREAD_ONCE_INIT;
+static hwloc_bitmap_t given;
+
+static void find_given(void)
+{
+  hwloc_topology_t topo;
+  if (hwloc_topology_init(&topo) != 0) return;
+  if (hwloc_topology_load(topo) == 0) {
+    given = hwloc_bitmap_alloc();
+    if (given && hwloc_get_cpubind(topo, given, HWLOC_CPUBIND_PROCESS) != 0)
+      hwloc_bitmap_copy(given, hwloc_topology_get_allowed_cpuset(topo));
+  }
+  hwloc_topology_destroy(topo);
+}
+
 i2m_pinning_t *pinning_open(void)
 {
+  pthread_once(&given_once, find_given);
   i2m_pinning_t *p = NULL;
   if (i2m_calloc(1, sizeof *p, &p) != I2M_OK) return NULL;
   if (hwloc_topology_init(&p->topo) != 0) {
@@ -32,8 +52,8 @@ i2m_pinning_t *pinning_open(void)
     return NULL;
   }
   p->allowed = hwloc_bitmap_alloc();
-  if (hwloc_get_cpubind(p->topo, p->allowed, HWLOC_CPUBIND_PROCESS) != 0)
-    hwloc_bitmap_copy(p->allowed, hwloc_topology_get_allowed_cpuset(p->topo));
+  if (given) hwloc_bitmap_copy(p->allowed, given);
+  else hwloc_bitmap_copy(p->allowed, hwloc_topology_get_allowed_cpuset(p->topo));
   p->ncores = count_cores(p->topo, p->allowed);
   if (p->ncores <= 0) p->ncores = 1;
   return p;
@@ -61,6 +81,11 @@ int pinning_bind_thread(i2m_pinning_t *p, int k)
   int ok = hwloc_set_cpubind(p->topo, set, HWLOC_CPUBIND_THREAD) == 0;
   hwloc_bitmap_free(set);
   return ok ? core : -1;
+}
+
+void pinning_float_thread(i2m_pinning_t *p)
+{
+  if (p) (void)hwloc_set_cpubind(p->topo, p->allowed, HWLOC_CPUBIND_THREAD);
 }
 
 int i2m_threads_available(void)

@@ -380,13 +380,17 @@ typedef struct {
   uint16_t label;
 } i2m_part_face_t;
 
-/** The parts of one process (borrowed from r), or of every rank (gathered). */
+/** The parts of one process (borrowed from r), or of every rank (gathered).  pairs: parts
+ *  of this process that are one piece although they are not one part (after the fragments'
+ *  repair joined them: local indices, two per pair). */
 typedef struct {
   size_t nparts, ncomps, nareas, nfaces;
   i2m_part_t *part;
   i2m_part_comp_t *comp;
   i2m_part_area_t *area;
   i2m_part_face_t *face;
+  size_t npairs;
+  const int64_t *pairs;
 } i2m_parts_t;
 
 /** A piece of the whole mesh: one or more parts joined across ranks. */

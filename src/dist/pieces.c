@@ -288,6 +288,15 @@ i2m_err_t i2m_dist_pieces(const i2m_par_t *par, i2m_refine_t *r, int64_t min_vox
   i2m_pieces_global_t G, mineG;
   memset(&G, 0, sizeof G);
   I2M_CALL(part_pairs(par, r, &mine, first, &pairs, &npairs));
+  i2m_err_t e = I2M_OK; /* (and the pairs the fragments' repair made on this rank) */
+  if (mine.npairs) e = i2m_realloc(2 * (npairs + mine.npairs) + 1, sizeof *pairs, &pairs);
+  for (size_t k = 0; e == I2M_OK && k < 2 * mine.npairs; k++) pairs[2 * npairs + k] = first + mine.pairs[k];
+  if (e == I2M_OK) npairs += mine.npairs;
+  e = i2m_par_agree(par, e);
+  if (e != I2M_OK) {
+    i2m_free(&pairs);
+    return e;
+  }
   i2m_err_t err = gather_parts(par, &mine, first, &all, owned);
   if (err == I2M_OK) err = gather_bytes(par, pairs, 2 * npairs * sizeof *pairs, (void **)&every, &off);
   i2m_free(&pairs);

@@ -46,6 +46,6 @@ i2m_err_t i2m_refine_repair_fragments(i2m_refine_t *r)
   r->fragments = G->fragments; /* (of the whole mesh) */
   r->fragment_tets = G->fragment_tets;
   i2m_debug("fragments: %zu pieces, %lld fragments, %.3f s", G->ngroups, (long long)G->fragments, i2m_wtime() - t0);
-  if (r->fragments) pieces_invalidate(r); /* (labels changed) */
+  if (r->fragments) return pieces_after_relabel(r); /* (labels changed) */
   return I2M_OK;
 }

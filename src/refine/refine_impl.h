@@ -108,7 +108,8 @@ typedef struct {
   i2m_part_comp_t *comp; /* owned: [ncomps] */
   i2m_part_area_t *area; /* owned: [nareas] */
   i2m_part_face_t *face; /* owned: [nfaces] */
-  size_t nparts, ncomps, nareas, nfaces;
+  int64_t *pairs;        /* owned: [2 npairs] parts the fragments' repair joined (local indices) */
+  size_t nparts, ncomps, nareas, nfaces, npairs;
   i2m_pieces_global_t global; /* the pieces of the whole mesh, when global_valid */
   bool global_valid;
 } pieces_t;
@@ -119,6 +120,9 @@ i2m_err_t pieces_build(i2m_refine_t *r, pieces_t *P);
  *  rule's last round, the fragments' repair and the census share one. */
 i2m_err_t pieces_get(i2m_refine_t *r, pieces_t **out);
 void pieces_invalidate(i2m_refine_t *r);
+/** After the fragments took their labels: r->pieces made those of the relabelled mesh (the
+ *  whole mesh's pieces to resolve again, on one process or across the ranks). */
+i2m_err_t pieces_after_relabel(i2m_refine_t *r);
 void pieces_free(pieces_t *P);
 /** The index of kept tet t's part. */
 uint32_t pieces_index(const pieces_t *P, uint32_t t);

@@ -322,6 +322,97 @@ static void test_sliver_perturbation(void)
   run_free(&moved);
 }
 
+/* Ridged shells: a ball in a thin wavy shell, in a box of another label; meshed coarsely,
+ * the shell's thin ridges leave small pieces (fragments) behind. */
+static int64_t ridged_shells(double x, double y, double z)
+{
+  const double r = sqrt(x * x + y * y + z * z), wave = 0.9 * sin(3 * atan2(y, x)) * sin(2 * acos(z / (r + 1e-12)));
+  if (r < 5.0 + wave) return 4;
+  if (r < 6.2 + wave) return 3;
+  return fabs(x) < 9.5 && fabs(y) < 9.5 && fabs(z) < 9.5 ? 8 : 0;
+}
+
+/* Face-connected pieces of the tets of label value `value` in mesh m, counted on the mesh
+ * alone: the faces sorted by their vertices, a union-find over the tets that share one. */
+typedef struct {
+  int32_t v[3];
+  int64_t t;
+} face_t;
+static int cmp_face(const void *x, const void *y)
+{
+  const face_t *a = x, *b = y;
+  for (int i = 0; i < 3; i++)
+    if (a->v[i] != b->v[i]) return a->v[i] < b->v[i] ? -1 : 1;
+  return 0;
+}
+static int64_t root_of(int64_t *par, int64_t x)
+{
+  while (par[x] != x) x = par[x] = par[par[x]];
+  return x;
+}
+static int64_t mesh_pieces_of(const i2m_tetmesh_t *m, int64_t value)
+{
+  face_t *f = malloc(sizeof *f * 4 * (size_t)m->nt + 1);
+  int64_t *par = malloc(sizeof *par * (size_t)m->nt + 1), nf = 0, pieces = 0;
+  for (int64_t t = 0; t < m->nt; t++) {
+    par[t] = t;
+    if (m->tet_label[t] != value) continue;
+    for (int i = 0; i < 4; i++) {
+      face_t *e = &f[nf++];
+      for (int j = 0, k = 0; j < 4; j++)
+        if (j != i) e->v[k++] = m->tet[4 * t + j];
+      for (int x = 0; x < 2; x++) /* (three values sorted) */
+        for (int y = 0; y < 2 - x; y++)
+          if (e->v[y] > e->v[y + 1]) {
+            const int32_t z = e->v[y];
+            e->v[y] = e->v[y + 1];
+            e->v[y + 1] = z;
+          }
+      e->t = t;
+    }
+  }
+  qsort(f, (size_t)nf, sizeof *f, cmp_face);
+  for (int64_t k = 1; k < nf; k++)
+    if (!cmp_face(&f[k - 1], &f[k])) par[root_of(par, f[k].t)] = root_of(par, f[k - 1].t);
+  for (int64_t t = 0; t < m->nt; t++) pieces += m->tet_label[t] == value && root_of(par, t) == t;
+  free(f);
+  free(par);
+  return pieces;
+}
+
+/* The census after the fragments' repair (the pieces before it, joined where fragments took a
+ * neighbour's label) counts the pieces per label that the relabelled mesh has, and the
+ * repair leaves every label fewer pieces. */
+static void test_census_after_fragments(void)
+{
+  double sp[3] = {1, 1, 1};
+  i2m_refine_params_t p;
+  i2m_refine_params_default(&p);
+  p.delta = 1.5;
+  run_t run = {make_image(ridged_shells, sp, NULL), NULL, NULL, NULL};
+  CU_ASSERT_FATAL(i2m_edt_create(run.img, &run.edt) == I2M_OK);
+  CU_ASSERT_FATAL(i2m_refine_create(run.img, run.edt, &p, &run.ref) == I2M_OK);
+  CU_ASSERT_FATAL(i2m_refine_run(run.ref) == I2M_OK);
+  i2m_label_pieces_t *before = NULL, *after = NULL;
+  CU_ASSERT_FATAL(i2m_refine_census(run.ref, I2M_WHOLE_MIN_VOXELS, &before) == I2M_OK);
+  CU_ASSERT_FATAL(i2m_refine_repair_fragments(run.ref) == I2M_OK);
+  i2m_refine_stats_t st;
+  i2m_refine_get_stats(run.ref, &st);
+  CU_ASSERT(st.fragments > 0); /* (else this test shows nothing) */
+  CU_ASSERT_FATAL(i2m_refine_census(run.ref, I2M_WHOLE_MIN_VOXELS, &after) == I2M_OK);
+  CU_ASSERT_FATAL(i2m_refine_extract(run.ref, &run.mesh) == I2M_OK);
+  int64_t lost = 0;
+  for (int l = 1; l < run.img->nlabels; l++) {
+    CU_ASSERT_EQUAL(after[l].mesh_pieces, mesh_pieces_of(run.mesh, after[l].value));
+    CU_ASSERT(after[l].mesh_pieces >= 1 && after[l].mesh_pieces <= before[l].mesh_pieces);
+    lost += before[l].mesh_pieces - after[l].mesh_pieces;
+  }
+  CU_ASSERT(lost > 0);
+  free(before);
+  free(after);
+  run_free(&run);
+}
+
 static const test_case_t cases[] = {
     {"nested shells", test_nested_shells},
     {"anisotropic, left-handed frame", test_anisotropic_left_handed},
@@ -330,5 +421,6 @@ static const test_case_t cases[] = {
     {"bad parameters refused", test_bad_parameters},
     {"quality figures of a hand-made mesh", test_quality_figures},
     {"sliver perturbation", test_sliver_perturbation},
+    {"census after the fragments' repair", test_census_after_fragments},
 };
 TEST_MAIN("refinement", cases)

@@ -674,21 +674,36 @@ i2m_err_t i2m_refine_set_groups(i2m_refine_t *r, i2m_pieces_global_t *G)
 
 /* ---- the pieces after the fragments' repair ---- */
 
-/* The fragments' tets that stay in the mesh (their new labels already there), in slot order. */
-static i2m_err_t fragment_tets(const i2m_refine_t *r, const i2m_pieces_global_t *G, uint32_t **out, size_t *n)
+/* The fragments' tets that stay in the mesh (their new labels already there): a walk over
+ * the faces inside each of their parts, from its least slot (a fragment has at most
+ * PIECE_SMALL_TETS tets: no pass over every tet). */
+static i2m_err_t fragment_tets(const i2m_refine_t *r, const uint8_t *moved, uint32_t **out, size_t *n)
 {
+  const pieces_t *P = &r->pieces;
   const i2m_dt_t *dt = r->dt;
-  const uint32_t slots = i2m_dt_ntets_slots(dt);
   size_t cap = 0;
   *out = NULL;
   *n = 0;
-  for (uint32_t t = 0; t < slots; t++) {
-    if (!tet_kept(dt, t) || G->group[G->part_group[pieces_index(&r->pieces, t)]].relabel < 0) continue;
-    if (*n == cap) {
-      cap = 2 * cap + 256;
+  for (size_t part = 0; part < P->nparts; part++) {
+    if (!moved[part] || !tet_kept(dt, P->root[part])) continue; /* (relabelled 0: out of the mesh) */
+    const size_t first = *n;
+    if (*n + PIECE_SMALL_TETS + 1 > cap) {
+      cap = 2 * cap + PIECE_SMALL_TETS + 256;
       I2M_CALL(i2m_realloc(cap, sizeof **out, out));
     }
-    (*out)[(*n)++] = t;
+    (*out)[(*n)++] = P->root[part];
+    for (size_t k = first; k < *n; k++) { /* (the part's tets found so far: a queue) */
+      const uint32_t t = (*out)[k];
+      for (int i = 0; i < 4; i++) {
+        const uint32_t nb = dt->tn[4 * (size_t)t + i];
+        if (nb >= I2M_DT_REMOTE || !tet_kept(dt, nb >> 2) || pieces_index(P, nb >> 2) != part) continue;
+        bool seen = false;
+        for (size_t j = first; j < *n && !seen; j++) seen = (*out)[j] == nb >> 2;
+        if (seen) continue;
+        I2M_CHECK(*n < cap, I2M_ERR_INTERNAL, "a fragment of more than %d tets", PIECE_SMALL_TETS);
+        (*out)[(*n)++] = nb >> 2;
+      }
+    }
   }
   return I2M_OK;
 }
@@ -756,14 +771,14 @@ i2m_err_t pieces_after_relabel(i2m_refine_t *r)
   uint32_t *ft = NULL;
   size_t nf = 0;
   uint8_t *moved = NULL;
-  i2m_err_t err = fragment_tets(r, G, &ft, &nf);
-  if (err == I2M_OK) err = i2m_calloc(P->nparts + 1, sizeof *moved, &moved);
+  i2m_err_t err = i2m_calloc(P->nparts + 1, sizeof *moved, &moved);
   for (size_t i = 0; err == I2M_OK && i < P->nparts; i++) {
     const int32_t to = G->group[G->part_group[i]].relabel;
     if (to < 0) continue;
     moved[i] = 1;
     P->part[i].label = (uint16_t)to;
   }
+  if (err == I2M_OK) err = fragment_tets(r, moved, &ft, &nf);
   for (size_t k = 0; err == I2M_OK && k < P->nfaces; k++)
     if (moved[P->face[k].part]) P->face[k].label = P->part[P->face[k].part].label;
   if (err == I2M_OK) err = relabel_comps(r, moved, ft, nf);

@@ -19,27 +19,13 @@ static int count_cores(hwloc_topology_t topo, hwloc_bitmap_t allowed)
   return n;
 }
 
-/* The cores the process was given, as they were the first time a pinning opened: later the
- * process's own threads are bound (the main thread too), and their bindings are not what the
- * launcher gave. */
-static pthread_once_t given_once = PTHREAD_ONCE_INIT;
+/* The cores the process was given, as the first pinning found them: later the process's own
+ * threads are bound (the main thread too), and their bindings are not what the launcher gave. */
+static pthread_mutex_t given_lock = PTHREAD_MUTEX_INITIALIZER;
 static hwloc_bitmap_t given;
-
-static void find_given(void)
-{
-  hwloc_topology_t topo;
-  if (hwloc_topology_init(&topo) != 0) return;
-  if (hwloc_topology_load(topo) == 0) {
-    given = hwloc_bitmap_alloc();
-    if (given && hwloc_get_cpubind(topo, given, HWLOC_CPUBIND_PROCESS) != 0)
-      hwloc_bitmap_copy(given, hwloc_topology_get_allowed_cpuset(topo));
-  }
-  hwloc_topology_destroy(topo);
-}
 
 i2m_pinning_t *pinning_open(void)
 {
-  pthread_once(&given_once, find_given);
   i2m_pinning_t *p = NULL;
   if (i2m_calloc(1, sizeof *p, &p) != I2M_OK) return NULL;
   if (hwloc_topology_init(&p->topo) != 0) {
@@ -52,8 +38,11 @@ i2m_pinning_t *pinning_open(void)
     return NULL;
   }
   p->allowed = hwloc_bitmap_alloc();
-  if (given) hwloc_bitmap_copy(p->allowed, given);
-  else hwloc_bitmap_copy(p->allowed, hwloc_topology_get_allowed_cpuset(p->topo));
+  pthread_mutex_lock(&given_lock);
+  if (!given && (given = hwloc_bitmap_alloc()) && hwloc_get_cpubind(p->topo, given, HWLOC_CPUBIND_PROCESS) != 0)
+    hwloc_bitmap_copy(given, hwloc_topology_get_allowed_cpuset(p->topo));
+  hwloc_bitmap_copy(p->allowed, given ? given : hwloc_topology_get_allowed_cpuset(p->topo));
+  pthread_mutex_unlock(&given_lock);
   p->ncores = count_cores(p->topo, p->allowed);
   if (p->ncores <= 0) p->ncores = 1;
   return p;

@@ -287,6 +287,30 @@ static int cmp_by_work(const void *a, const void *b)
   return (x->cell > y->cell) - (x->cell < y->cell);
 }
 
+/* The rank for task t in a deterministic phase: the one that holds most of its block (the data
+ * stays put), unless it would fetch some and come to hold more than SCHED_HOLD_SHARE times its
+ * share of the tets; then the one that would hold least after the task (the least to fetch on
+ * a tie, then the lowest).  Without the bound one rank took nearly every task of the knee at 2
+ * ranks: the cells it refined weigh most in their neighbours' blocks, so their tasks went to
+ * it, and their neighbours' after them. */
+static int phase_rank(const sched_t *S, sched_task_t t, const int64_t *held, int64_t total)
+{
+  const int best = sched_best_rank(S, t);
+  const int64_t m = to_move(S, best, t);
+  if (m == 0 || (double)(held[best] + m) * S->nranks <= (double)total * SCHED_HOLD_SHARE) return best;
+  int pick = best;
+  int64_t least = held[best] + m, least_move = m;
+  for (int r = 0; r < S->nranks; r++) {
+    const int64_t mr = to_move(S, r, t);
+    if (held[r] + mr < least || (held[r] + mr == least && mr < least_move)) {
+      least = held[r] + mr;
+      least_move = mr;
+      pick = r;
+    }
+  }
+  return pick;
+}
+
 uint32_t sched_phase(sched_t *S, int color, bool points_only, sched_task_t *out, int *owner)
 {
   by_work_t *list = NULL;
@@ -299,12 +323,14 @@ uint32_t sched_phase(sched_t *S, int color, bool points_only, sched_task_t *out,
     if (x[0] % 3 + 3 * (x[1] % 3) + 9 * (x[2] % 3) == color && w > 0) list[n++] = (by_work_t){w, c};
   }
   qsort(list, n, sizeof *list, cmp_by_work);
-  for (uint32_t k = 0; k < n; k++) { /* each to the rank that holds most of its block: data stays put */
+  int64_t total = held_tets(S);
+  for (uint32_t k = 0; k < n; k++) {
     const sched_task_t t = {list[k].cell, false};
-    const int r = sched_best_rank(S, t);
+    const int r = phase_rank(S, t, S->held, total);
     out[k] = t;
     owner[k] = r;
     sched_give(S, r, t);
+    total = held_tets(S);
   }
   i2m_free(&list);
   return n;

@@ -88,9 +88,11 @@ void sched_feedback(sched_t *S, int rank, const sched_task_t *tasks, uint32_t nt
 bool sched_busy(const sched_t *S);
 
 /** The deterministic mode's phase: the tasks of one colour (the cells whose coordinates
- *  modulo 3 make it) that have work (points_only: bridge points), each assigned (owner[k]) to the rank that holds most of
- *  its block (the data stays put; the shares of sched_partition balance the work); their
- *  blocks locked and given to their ranks.  Returns their number. */
+ *  modulo 3 make it) that have work (points_only: bridge points), most work first, each
+ *  assigned (owner[k]) to the rank that holds most of its block (the data stays put), unless
+ *  that rank would fetch data and come to hold more than SCHED_HOLD_SHARE times its share of
+ *  the tets: then to the rank that would hold least after it; their blocks locked and given
+ *  to their ranks.  Returns their number. */
 uint32_t sched_phase(sched_t *S, int color, bool points_only, sched_task_t *out, int *owner);
 
 /** Has some cell bridge points still to insert? */

@@ -14,7 +14,7 @@
 # while its threads refined.  The knee atlas at 2 ranks (depth 3): no rank ever held more than
 # 75% of the final tets.  --sliver-angle under MPI keeps every guarantee and treats the
 # slivers.  --deterministic: the same checksum on one process and at 1, 2 and 4 ranks x 1 and
-# 2 threads.
+# 2 threads, every rank making at least a tenth of the insertions.
 set -eu
 . "$(dirname "$0")/guarantees.sh"
 if ! command -v mpirun >/dev/null 2>&1; then
@@ -75,6 +75,17 @@ EOF
 }
 
 checksum() { "$PY" -c "import json,sys; print(json.load(open(sys.argv[1]))['counts']['checksum'])" "$1"; }
+# every rank of a deterministic run made at least a tenth of the insertions (its phases' tasks
+# go where their data is, but no rank may take them all)
+spread() {
+  "$PY" - "$1" <<'EOF2'
+import json, sys
+ranks = json.load(open(sys.argv[1]))["dist"]["per_rank"]
+ins = [g["insertions"] for g in ranks]
+ok = len(ins) == 1 or min(ins) >= 0.1 * sum(ins)
+print("%s insertions per rank %s" % ("ok" if ok else "too few on a rank:", ins))
+EOF2
+}
 
 # one image: $1 path, $2 i2m options, $3 "peak" to assert the 75% bound
 run_image() {
@@ -176,8 +187,13 @@ for spec in "$TMP/shells.nrrd:" "$DATA/vertebrae_vbseg.mha:" "$DATA/knee_atlas.n
       echo "FAIL $name deterministic, $1 ranks x $2 threads: i2m failed"; tail -5 "$TMP/log"; fail=1; continue
     fi
     got=$(checksum "$TMP/d.json")
+    spread=$(spread "$TMP/d.json")
     if [ "$got" = "$want" ]; then echo "ok   $name deterministic, $1 ranks x $2 threads: checksum $got, as one process"
     else echo "FAIL $name deterministic, $1 ranks x $2 threads: checksum $got, one process $want"; fail=1; fi
+    case $spread in
+    ok*) echo "ok   $name deterministic, $1 ranks x $2 threads: ${spread#ok }" ;;
+    *) echo "FAIL $name deterministic, $1 ranks x $2 threads: $spread"; fail=1 ;;
+    esac
   done
 done
 exit $fail

@@ -131,7 +131,8 @@ void i2m_refine_get_stats(const i2m_refine_t *r, i2m_refine_stats_t *s);
 typedef struct {
   int64_t slivers_before, slivers_after; /**< output tets below the bound */
   double min_before, min_after;          /**< smallest dihedral angle of the output tets (degrees) */
-  int64_t tried, kept;                   /**< vertex moves tried and kept */
+  int64_t tried, kept;                   /**< moves (and insertions) tried and kept */
+  int64_t inserted;                      /**< of the kept: points inserted (new vertices) */
   double seconds;
 } i2m_sliver_stats_t;
 
@@ -140,10 +141,12 @@ typedef struct {
 void i2m_refine_dihedral_bands(const i2m_refine_t *r, i2m_dihedral_bands_t *b);
 
 /** Sliver perturbation, after refinement and before extraction (no other work on the mesh):
- *  moves the vertices of the output tets whose smallest dihedral angle is below @p bound
- *  degrees, worst first (surface vertices along their own interface patch), keeping a move
- *  only when every changed tet passes the refinement rules and the changed tets' smallest
- *  angle beats the vertex's old star, so every guarantee of refinement holds.  On the calling
+ *  for the output tets whose smallest dihedral angle is below @p bound degrees, worst first,
+ *  inserts a point at the circumcentre (on the closest interface point when that is within
+ *  delta), else moves their vertices (surface vertices along their own interface patch),
+ *  keeping a change only when every changed tet passes the refinement rules and the changed
+ *  output tets' smallest angle beats the sliver's (an insertion) or the vertex's old star's (a
+ *  move), so every guarantee of refinement holds.  On the calling
  *  thread; i2m_threads_perturb_slivers runs the same work, with the same result, on threads. */
 i2m_err_t i2m_refine_perturb_slivers(i2m_refine_t *r, double bound, i2m_sliver_stats_t *st);
 

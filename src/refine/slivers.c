@@ -59,11 +59,13 @@ typedef struct {
   uint32_t *saved, cap_saved;               /* an in-place move's tets: labels and tiles before */
   uint64_t rng;
   int64_t tried, kept, in_place, in_place_kept; /* in_place: the moves tried without a removal */
+  int64_t inserted;                         /* the points added (kept insertions) */
 } perturb_t;
 
 struct sliver_pass {
   double bound, final_bound, t0; /* the stage's bound, the one asked for */
   int round, stage_start;        /* rounds so far (they seed the moves); the stage's first */
+  i2m_gidx_t seq_gid;            /* the next global id of a point the sequential part inserts */
   int64_t kept_before_round;
   bool wide;                     /* this round tries WIDE_MOVES targets up to WIDE_REACH */
   perturb_t *per;        /* [nworkers] */
@@ -576,6 +578,72 @@ static uint32_t tet_of_vertices(perturb_t *P, const uint32_t v[4], int a)
   return I2M_DT_NONE;
 }
 
+/* A fresh global id for a point the pass inserts: the next of its tile's, or, in the
+ * sequential part (worker 0 alone, slivers in a fixed order), the next of the pass's own range
+ * (the tiling's ids after its last tile's): the same ids whatever the number of threads. */
+static i2m_gidx_t fresh_gid(const i2m_refine_worker_t *w)
+{
+  return w->tile ? w->tile->gid_next : w->r->slivers->seq_gid;
+}
+
+static void gid_taken(i2m_refine_worker_t *w)
+{
+  if (w->tile) w->tile->gid_next++;
+  else w->r->slivers->seq_gid++;
+}
+
+/* A new vertex in sliver s's circumball: the interface point closest to its circumcentre
+ * when that lies within delta of it (a surface vertex of that patch), else the circumcentre
+ * (a free vertex).  Kept when the new tets pass every rule and the output ones are better
+ * than the sliver.  A MOVE_* result. */
+static int try_insertion(perturb_t *P, const sliver_t *s)
+{
+  i2m_refine_worker_t *w = P->w;
+  i2m_refine_t *r = w->r;
+  i2m_dt_t *dt = r->dt;
+  if (i2m_dt_meta(dt, s->t) != s->meta) return MOVE_UNDONE;
+  tet_geom_t g;
+  tet_centre(r, s->t, &g);
+  if (!isfinite(g.r2)) return MOVE_UNDONE;
+  i2m_edt_probe_t pr;
+  i2m_edt_probe_world(r->edt, g.cc, INFINITY, &pr);
+  double p[3];
+  vplace_t pl = {false, false, 0};
+  uint8_t kind = I2M_VK_FREE;
+  if (isfinite(pr.d2) && pr.d2 < r->delta2) {
+    memcpy(p, pr.z, sizeof p);
+    pl.surface = true;
+    pl.tag = patch_key(pr.pair[0], pr.pair[1]);
+    kind = I2M_VK_SURFACE;
+  } else {
+    memcpy(p, g.cc, sizeof p);
+    pl.near = isfinite(pr.d2) && pr.d2 <= r->four_delta2;
+  }
+  if (!tiles_zone_holds(w, p)) return MOVE_DEFERRED;
+  const double floor_cos = tet_max_cosine(dt, s->t);
+  const uint32_t nborn = w->nborn, nbornv = w->nbornv;
+  P->nchanged = 0;
+  P->tried++;
+  uint32_t v;
+  w->ctx.journal = true;
+  const i2m_dt_status_t st = put_in(P, p, fresh_gid(w), kind, pl, s->t, false, &v);
+  w->ctx.journal = false;
+  if (st == I2M_DT_FAILED) return MOVE_ERROR;
+  if (st != I2M_DT_OK) return st == I2M_DT_ROLLBACK || st == I2M_DT_FULL ? MOVE_DEFERRED : MOVE_UNDONE;
+  const int ok = changed_ok(P, floor_cos, 0, 0);
+  if (ok > 0) {
+    gid_taken(w);
+    P->kept++;
+    P->inserted++;
+    return note_touched(P) == I2M_OK ? MOVE_KEPT : MOVE_ERROR;
+  }
+  grids_out(r, v, pl);
+  w->nborn = nborn;
+  w->nbornv = nbornv;
+  if (i2m_dt_undo_insert(&w->ctx) != I2M_OK) return MOVE_ERROR;
+  return ok < 0 ? MOVE_DEFERRED : MOVE_UNDONE;
+}
+
 /* Tries to move each vertex of sliver s (free vertices anywhere near, surface vertices along
  * their patch), the free ones first, each kind in the order of their global ids, until one
  * move is kept.  A MOVE_* result (MOVE_DEFERRED: some move could not stay in the zone, none
@@ -588,6 +656,8 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
   i2m_refine_worker_t *w = P->w;
   i2m_dt_t *dt = w->r->dt;
   if (i2m_dt_meta(dt, s->t) != s->meta) return MOVE_UNDONE; /* changed by an earlier move */
+  const int inserted = try_insertion(P, s);
+  if (inserted == MOVE_KEPT || inserted == MOVE_ERROR) return inserted;
   uint32_t verts[4];
   i2m_gidx_t gid[4];
   memcpy(verts, dt->tv + 4 * (size_t)s->t, sizeof verts);
@@ -817,6 +887,7 @@ i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
     S->list.n--;
   if (err == I2M_OK) err = next_stage_if_done(r, S);
   if (err == I2M_OK) err = i2m_refine_tiling_begin(r); /* (the workers stop taking locks) */
+  if (err == I2M_OK) S->seq_gid = tiles_spare_gid(r->tiling);
   if (err == I2M_OK) err = i2m_malloc(r->tiling->ntiles + 1, sizeof *S->first, &S->first);
   if (err == I2M_OK) err = i2m_malloc(r->tiling->ntiles, sizeof *S->active, &S->active);
   if (err != I2M_OK) {
@@ -878,7 +949,8 @@ i2m_err_t i2m_refine_slivers_phase(i2m_refine_t *r, int color, const uint32_t **
     const uint32_t id = S->active[i], n = S->first[id + 1] - S->first[id];
     I2M_CALL(i2m_dt_slots_grant(r->dt, &g->tile[id].slots, 256 + 64 * n, 16 + 2 * n));
   }
-  I2M_CALL(vgrid_reserve(&r->surf, r->dt->cap_v)); /* nobody grows the grid while tiles run */
+  I2M_CALL(vgrid_reserve(&r->surf, r->dt->cap_v)); /* nobody grows the grids while tiles run */
+  I2M_CALL(vgrid_reserve(&r->freev, r->dt->cap_v));
   *tiles = S->active;
   *ntiles = S->nactive;
   return I2M_OK;
@@ -947,6 +1019,8 @@ i2m_err_t i2m_refine_slivers_sequential(i2m_refine_t *r)
 static i2m_err_t final_stats(i2m_refine_t *r, struct sliver_pass *S, double bound)
 {
   moves_so_far(r, S, &S->st.tried, &S->st.kept);
+  S->st.inserted = 0;
+  for (int k = 0; k < r->nworkers; k++) S->st.inserted += S->per[k].inserted;
   const i2m_err_t err = collect_all(r, bound, &S->list, &S->st.min_after);
   S->st.slivers_after = (int64_t)S->list.n;
   S->st.seconds = i2m_wtime() - S->t0;

@@ -62,6 +62,8 @@ uint32_t tiles_tile_of_tet(const i2m_refine_t *r, uint32_t t)
   return tile_index(r->tiling, c);
 }
 
+i2m_gidx_t tiles_spare_gid(const tiling_t *g) { return g->gid_base + ((i2m_gidx_t)g->ntiles << TILE_GID_SHIFT); }
+
 int tiles_color(const tiling_t *g, uint32_t id)
 {
   int32_t c[3];

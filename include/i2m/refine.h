@@ -321,6 +321,11 @@ i2m_err_t i2m_refine_slivers_dist_begin(i2m_refine_t *r, double bound);
 /** The bound of this stage (degrees), the round (it seeds the moves) and whether it is wide
  *  (more targets, farther: after a round that kept no move). */
 void i2m_refine_slivers_dist_round(i2m_refine_t *r, double bound, int round, bool wide);
+/** The last stage from now on: the output tets with a dihedral angle wider than
+ *  180 - 4/3 x the final bound are treated too (160 degrees at 15), and a change is kept only
+ *  when its output tets are within both bounds (one process: after the other stages, by
+ *  itself). */
+void i2m_refine_slivers_caps(i2m_refine_t *r);
 /** Slivers of tile id now (below the stage's bound). */
 int64_t i2m_refine_tile_sliver_count(i2m_refine_t *r, uint32_t id);
 /** Before a job of sliver tasks: slots granted, the grids' room made. */

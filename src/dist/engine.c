@@ -1004,10 +1004,11 @@ i2m_err_t i2m_dist_perturb_slivers(const i2m_par_t *par, i2m_refine_t *r, const 
   E.slivers = true;
   if (err == I2M_OK) err = i2m_par_agree(par, i2m_calloc(E.S.ncells, 1, &E.done));
   E.t0 = i2m_wtime();
-  const double stages[2] = {bound < SLIVER_FIRST_STAGE ? bound : SLIVER_FIRST_STAGE, bound};
+  const double stages[3] = {bound < SLIVER_FIRST_STAGE ? bound : SLIVER_FIRST_STAGE, bound, bound}; /* (the last: caps too) */
   int round = 0;
-  for (int k = 0; k < 2 && err == I2M_OK; k++) {
-    if (k == 1 && stages[1] <= stages[0]) break;
+  for (int k = 0; k < 3 && err == I2M_OK; k++) {
+    if (k == 1 && stages[1] <= stages[0]) continue;
+    if (k == 2) i2m_refine_slivers_caps(r);
     bool wide = false; /* (after a round that kept no move, one wide round: as on one process) */
     for (int n = 0; n < SLIVER_ROUNDS && err == I2M_OK; n++, round++) { /* rounds while moves are kept */
       int64_t before[2], after[2];

@@ -2,7 +2,9 @@
  *
  * Delaunay refinement bounds the radius-edge ratio, which leaves slivers: four nearly
  * coplanar vertices on a small circumsphere.  For every output tet whose smallest dihedral
- * angle is below the bound, worst first, each of its vertices is moved in turn to a few
+ * angle is below the bound, worst first, a new vertex goes in at its circumcentre (on the
+ * closest interface point when that is within delta), kept when the new tets pass every rule
+ * and beat the sliver; else each of its vertices is moved in turn to a few
  * random nearby points: the vertex is removed and reinserted there (same global id, so the
  * same perturbation), the changed tets are labelled and judged by the very rules refinement
  * ended with, and the move is kept only when every changed tet passes them and the smallest
@@ -12,7 +14,9 @@
  * closest point of its own interface patch to a random nearby point, so it stays on the
  * interface: the worst slivers are flat tets of four surface vertices on a planar stretch of
  * voxel faces (four nearly cocircular points), which only such a move can lift.  Every rule
- * holds after every kept move, so every guarantee of refinement holds at the end.
+ * holds after every kept move, so every guarantee of refinement holds at the end.  A last
+ * stage treats the tets with too wide an angle too (tet_badness), keeping only changes whose
+ * output tets are within both bounds.
  *
  * The work runs on the deterministic mode's tiles (tiles.c): in each round, the slivers of
  * the tiles of one colour at a time, each tile by one thread inside its zone, then a
@@ -66,6 +70,9 @@ struct sliver_pass {
   double bound, final_bound, t0; /* the stage's bound, the one asked for */
   int round, stage_start;        /* rounds so far (they seed the moves); the stage's first */
   i2m_gidx_t seq_gid;            /* the next global id of a point the sequential part inserts */
+  bool caps;                     /* the last stage: the tets with too wide an angle too */
+  double cap_shift;              /* tet_badness's mirror for the wide angles (final bound's) */
+  double cos_final;              /* cos(final_bound) */
   int64_t kept_before_round;
   bool wide;                     /* this round tries WIDE_MOVES targets up to WIDE_REACH */
   perturb_t *per;        /* [nworkers] */
@@ -103,10 +110,42 @@ static uint64_t rng_seed(const i2m_refine_t *r, int round, uint32_t tile)
 }
 
 /* The cosine of tet t's smallest dihedral angle. */
-static double tet_max_cosine(const i2m_dt_t *dt, uint32_t t)
+/* How bad a tet is, as a cosine (the pass's one measure: lists, floors, trials): the largest of
+ * its dihedral cosines (its smallest angle); in the last stage (caps), or, when its largest
+ * angle is wide, that angle's cosine c mirrored as cap_shift - c, where cap_shift = cos(A) +
+ * cos(W) for the bound A and the widest angle allowed W = 180 - 4/3 A (160 degrees at
+ * A = 15): a tet with an angle of W counts as one with an angle of A, and a wider one as
+ * worse.  *cmax (if not NULL) gets the largest cosine alone. */
+static double tet_badness(const i2m_refine_t *r, uint32_t t, double *cmax)
 {
+  const i2m_dt_t *dt = r->dt;
+  if (!r->slivers->caps) {
+    const uint32_t *v = dt->tv + 4 * (size_t)t;
+    const double hi = i2m_tet_max_dihedral_cosine(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]));
+    if (cmax) *cmax = hi;
+    return hi;
+  }
   const uint32_t *v = dt->tv + 4 * (size_t)t;
-  return i2m_tet_max_dihedral_cosine(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]));
+  double cs[6], hi = -1.0, lo = 1.0;
+  i2m_tet_dihedral_cosines(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), cs);
+  for (int e = 0; e < 6; e++) {
+    hi = cs[e] > hi ? cs[e] : hi;
+    lo = cs[e] < lo ? cs[e] : lo;
+  }
+  if (cmax) *cmax = hi;
+  const double wide = r->slivers->cap_shift - lo;
+  return wide > hi ? wide : hi;
+}
+
+static double widest_allowed(double bound) { return 180.0 - bound * 4.0 / 3.0; }
+
+/* The floor a change's output tets must beat: in the caps' stage, every one of them must also
+ * be within both bounds (a wide angle is not traded for a small one: the stages before left
+ * no tet below the bound, and this one must not make any). */
+static double floor_of(const i2m_refine_t *r, double worst)
+{
+  const struct sliver_pass *S = r->slivers;
+  return S->caps && worst > S->cos_final ? S->cos_final : worst;
 }
 
 void i2m_refine_dihedral_bands(const i2m_refine_t *r, i2m_dihedral_bands_t *b)
@@ -352,7 +391,7 @@ static int changed_ok(perturb_t *P, double floor_cos, uint32_t cached, uint32_t 
     const uint32_t t = P->changed[k];
     if (!i2m_dt_alive(dt, t)) continue; /* (a removal's tet the insertion took again) */
     if (k < cached && i2m_dt_meta(dt, t) != P->hole_meta[k]) continue; /* (its slot, a new tet's: checked below) */
-    if ((k < cached ? P->hole_cos[k] : tet_max_cosine(dt, t)) < floor_cos) continue;
+    if ((k < cached ? P->hole_cos[k] : tet_badness(P->w->r, t, NULL)) < floor_cos) continue;
     if (k >= unlabelled) label_tet(P->w->r, t);
     if (tinfo(dt, t)->label != 0) return 0;
   }
@@ -486,7 +525,7 @@ static int mover_take_out(perturb_t *P, mover_t *M)
       return MOVE_ERROR;
   }
   for (uint32_t k = 0; k < M->nremoved; k++) {
-    P->hole_cos[k] = tet_max_cosine(P->w->r->dt, P->changed[k]);
+    P->hole_cos[k] = tet_badness(P->w->r, P->changed[k], NULL);
     P->hole_meta[k] = i2m_dt_meta(P->w->r->dt, P->changed[k]);
   }
   return MOVE_KEPT;
@@ -620,7 +659,7 @@ static int try_insertion(perturb_t *P, const sliver_t *s)
     pl.near = isfinite(pr.d2) && pr.d2 <= r->four_delta2;
   }
   if (!tiles_zone_holds(w, p)) return MOVE_DEFERRED;
-  const double floor_cos = tet_max_cosine(dt, s->t);
+  const double floor_cos = floor_of(r, tet_badness(r, s->t, NULL));
   const uint32_t nborn = w->nborn, nbornv = w->nbornv;
   P->nchanged = 0;
   P->tried++;
@@ -680,7 +719,7 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
     for (uint32_t k = 0; k < P->nstar; k++) {
       const uint32_t t = P->star[k], *tv = dt->tv + 4 * (size_t)t;
       if (tet_kept(dt, t)) {
-        const double c = tet_max_cosine(dt, t);
+        const double c = tet_badness(w->r, t, NULL);
         floor_cos = c > floor_cos ? c : floor_cos;
       }
       for (int j = 0; j < 4; j++)
@@ -691,6 +730,7 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
     }
     if (!isfinite(lmin2)) continue;
     const double lmin = sqrt(lmin2);
+    floor_cos = floor_of(w->r, floor_cos);
     mover_t M;
     mover_begin(w->r, v, &M);
     const bool wide = w->r->slivers->wide;
@@ -726,8 +766,8 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
 
 /* ---- the lists of slivers ---- */
 
-/* Output tet t, whose largest dihedral cosine is c, joins the list when its smallest angle is
- * below the bound (its cosine above cos_bound). */
+/* Output tet t, whose badness (tet_badness) is c, joins the list when it is worse than the
+ * bound (c above cos_bound). */
 static i2m_err_t consider(const i2m_dt_t *dt, uint32_t t, double c, double cos_bound, sliver_list_t *L)
 {
   if (!(c > cos_bound)) return I2M_OK;
@@ -741,30 +781,35 @@ static i2m_err_t consider(const i2m_dt_t *dt, uint32_t t, double c, double cos_b
 
 #define COLLECT_CHUNKS 64
 
-/* The output tets below the bound, in order, and the smallest angle of all output tets: fixed
- * chunks of the slots in parallel, joined in chunk order, then sorted (the same list on any
- * number of threads). */
-static i2m_err_t collect_all(const i2m_refine_t *r, double bound, sliver_list_t *L, double *min_all)
+/* The output tets worse than the bound (tet_badness), in order; the smallest angle of all
+ * output tets and (nbelow, if not NULL) the number of those whose smallest angle is below the
+ * bound: fixed chunks of the slots in parallel, joined in chunk order, then sorted (the same
+ * list on any number of threads). */
+static i2m_err_t collect_all(const i2m_refine_t *r, double bound, sliver_list_t *L, double *min_all, int64_t *nbelow)
 {
   const i2m_dt_t *dt = r->dt;
   const uint32_t nt = i2m_dt_ntets_slots(dt);
   const double cos_bound = cos(bound * (I2M_PI / 180.0));
   sliver_list_t part[COLLECT_CHUNKS];
   double maxc[COLLECT_CHUNKS];
+  int64_t below = 0;
   memset(part, 0, sizeof part);
   int failed = 0;
-  I2M_OMP(omp parallel for schedule(dynamic, 1) reduction(| : failed))
+  I2M_OMP(omp parallel for schedule(dynamic, 1) reduction(| : failed) reduction(+ : below))
   for (int c = 0; c < COLLECT_CHUNKS; c++) {
     const uint32_t lo = (uint32_t)((uint64_t)nt * (uint64_t)c / COLLECT_CHUNKS);
     const uint32_t hi = (uint32_t)((uint64_t)nt * (uint64_t)(c + 1) / COLLECT_CHUNKS);
     maxc[c] = -1.0;
     for (uint32_t t = lo; t < hi && !failed; t++) {
       if (!tet_kept(dt, t)) continue;
-      const double m = tet_max_cosine(dt, t);
+      double m;
+      const double bad = tet_badness(r, t, &m);
       maxc[c] = m > maxc[c] ? m : maxc[c];
-      failed |= consider(dt, t, m, cos_bound, &part[c]) != I2M_OK;
+      below += m > cos_bound;
+      failed |= consider(dt, t, bad, cos_bound, &part[c]) != I2M_OK;
     }
   }
+  if (nbelow) *nbelow = below;
   L->n = 0;
   double m = -1.0;
   for (int c = 0; c < COLLECT_CHUNKS; c++) {
@@ -811,7 +856,7 @@ static i2m_err_t collect_after_round(i2m_refine_t *r, struct sliver_pass *S)
     const uint64_t bit = (uint64_t)1 << (t & 63);
     if (S->seen_bits[t >> 6] & bit) continue;
     S->seen_bits[t >> 6] |= bit;
-    if (err == I2M_OK && tet_kept(dt, t)) err = consider(dt, t, tet_max_cosine(dt, t), cos_bound, L);
+    if (err == I2M_OK && tet_kept(dt, t)) err = consider(dt, t, tet_badness(r, t, NULL), cos_bound, L);
   }
   for (uint32_t k = 0; k < P0->ntouched; k++) S->seen_bits[P0->touched[k] >> 6] = 0;
   P0->ntouched = 0;
@@ -863,12 +908,15 @@ static void moves_so_far(const i2m_refine_t *r, const struct sliver_pass *S, int
  * 5.  A kept move never lowers the smallest angle, so the second stage keeps the first's.) */
 static i2m_err_t next_stage_if_done(i2m_refine_t *r, struct sliver_pass *S)
 {
-  if (i2m_refine_slivers_has_work(r) || S->bound >= S->final_bound) return I2M_OK;
+  if (i2m_refine_slivers_has_work(r) || (S->bound >= S->final_bound && S->caps)) return I2M_OK;
   double min_all;
+  if (S->bound >= S->final_bound) i2m_refine_slivers_caps(r);
   S->bound = S->final_bound;
   S->stage_start = S->round;
-  return collect_all(r, S->bound, &S->list, &min_all);
+  return collect_all(r, S->bound, &S->list, &min_all, NULL);
 }
+
+void i2m_refine_slivers_caps(i2m_refine_t *r) { r->slivers->caps = true; }
 
 i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
 {
@@ -877,12 +925,13 @@ i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
   I2M_CALL(i2m_calloc(1, sizeof *r->slivers, &r->slivers));
   struct sliver_pass *S = r->slivers;
   S->final_bound = bound;
+  S->cos_final = cos(bound * (I2M_PI / 180.0));
+  S->cap_shift = S->cos_final + cos(widest_allowed(bound) * (I2M_PI / 180.0));
   S->bound = bound < FIRST_STAGE ? bound : FIRST_STAGE;
   S->t0 = i2m_wtime();
   i2m_err_t err = i2m_calloc((size_t)r->nworkers, sizeof *S->per, &S->per);
   for (int k = 0; err == I2M_OK && k < r->nworkers; k++) S->per[k].w = &r->workers[k];
-  if (err == I2M_OK) err = collect_all(r, bound, &S->list, &S->st.min_before);
-  S->st.slivers_before = (int64_t)S->list.n;
+  if (err == I2M_OK) err = collect_all(r, bound, &S->list, &S->st.min_before, &S->st.slivers_before);
   while (S->list.n > 0 && !(S->list.a[S->list.n - 1].angle < S->bound)) /* the first stage's (sorted) */
     S->list.n--;
   if (err == I2M_OK) err = next_stage_if_done(r, S);
@@ -1021,8 +1070,7 @@ static i2m_err_t final_stats(i2m_refine_t *r, struct sliver_pass *S, double boun
   moves_so_far(r, S, &S->st.tried, &S->st.kept);
   S->st.inserted = 0;
   for (int k = 0; k < r->nworkers; k++) S->st.inserted += S->per[k].inserted;
-  const i2m_err_t err = collect_all(r, bound, &S->list, &S->st.min_after);
-  S->st.slivers_after = (int64_t)S->list.n;
+  const i2m_err_t err = collect_all(r, bound, &S->list, &S->st.min_after, &S->st.slivers_after);
   S->st.seconds = i2m_wtime() - S->t0;
   int64_t in_place = 0, in_place_kept = 0;
   for (int k = 0; k < r->nworkers; k++) in_place += S->per[k].in_place, in_place_kept += S->per[k].in_place_kept;
@@ -1075,12 +1123,13 @@ i2m_err_t i2m_refine_slivers_dist_begin(i2m_refine_t *r, double bound)
   I2M_CALL(i2m_calloc(1, sizeof *r->slivers, &r->slivers));
   struct sliver_pass *S = r->slivers;
   S->final_bound = bound;
+  S->cos_final = cos(bound * (I2M_PI / 180.0));
+  S->cap_shift = S->cos_final + cos(widest_allowed(bound) * (I2M_PI / 180.0));
   S->bound = bound < FIRST_STAGE ? bound : FIRST_STAGE;
   S->t0 = i2m_wtime();
   i2m_err_t err = i2m_calloc((size_t)r->nworkers, sizeof *S->per, &S->per);
   for (int k = 0; err == I2M_OK && k < r->nworkers; k++) S->per[k].w = &r->workers[k];
-  if (err == I2M_OK) err = collect_all(r, bound, &S->list, &S->st.min_before); /* (this rank's figures) */
-  S->st.slivers_before = (int64_t)S->list.n;
+  if (err == I2M_OK) err = collect_all(r, bound, &S->list, &S->st.min_before, &S->st.slivers_before); /* (this rank's) */
   S->list.n = 0;
   if (err != I2M_OK) pass_free(r);
   return err;
@@ -1103,7 +1152,7 @@ static i2m_err_t tile_slivers(const i2m_refine_t *r, uint32_t id, sliver_list_t 
   for (uint32_t i = 0; i < tl->ntets; i++) { /* (stale entries: their meta moved on) */
     const uint32_t t = tl->tets[i].t;
     if (i2m_dt_meta(dt, t) != tl->tets[i].meta || !tet_kept(dt, t)) continue;
-    I2M_CALL(consider(dt, t, tet_max_cosine(dt, t), cos_bound, L));
+    I2M_CALL(consider(dt, t, tet_badness(r, t, NULL), cos_bound, L));
   }
   if (L->n > 1) qsort(L->a, L->n, sizeof *L->a, cmp_sliver);
   size_t n = 0; /* (a tet filed twice is listed twice) */

@@ -337,10 +337,10 @@ i2m_err_t tiles_route(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t me
 i2m_err_t tiles_defer(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t meta, pending_t pv);
 /** The tile that holds tet t's centroid, and a tile's colour (0..7). */
 uint32_t tiles_tile_of_tet(const i2m_refine_t *r, uint32_t t);
-/* The first global id of the tiling's range that no tile uses (the one after its last tile's). */
-i2m_gidx_t tiles_spare_gid(const tiling_t *g);
 uint32_t tiles_tile_of_point(const i2m_refine_t *r, const double x[3]);
 int tiles_color(const tiling_t *g, uint32_t id);
+/** The first global id of the tiling's range that no tile uses (the one after its last tile's). */
+i2m_gidx_t tiles_spare_gid(const tiling_t *g);
 /** Worker w takes tile id's lists (its wide lists, wide), slots, zone and block (and gives
  *  them back). */
 void tiles_bind(i2m_refine_worker_t *w, uint32_t id, bool wide);

@@ -192,7 +192,7 @@ void i2m_refine_tiling_bound(i2m_refine_t *r);
  *  into its tile (workers stop taking vertex locks). */
 i2m_err_t i2m_refine_tiling_begin(i2m_refine_t *r);
 /** Sets the octree's depth (2^depth cells along each axis of the labelled block): the tiles
- *  of i2m_refine_octree_begin, and (i2m_refine_tiling_bound) the background bound. */
+ *  of i2m_refine_octree_begin, and the background bound (it calls i2m_refine_tiling_bound). */
 void i2m_refine_set_depth(i2m_refine_t *r, int depth);
 /** The octree's depth when none is asked for: as deep as gives @p workers (ranks x threads)
  *  several tasks of each colour (workers <= 0: 3, the deterministic mode's, which must not

@@ -919,8 +919,7 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
   const int T = o->threads.threads > 0 ? o->threads.threads : i2m_threads_default();
   int depth = o->threads.depth > 0 ? o->threads.depth : i2m_refine_default_depth(r, o->threads.deterministic ? 0 : par->size * T);
   depth = i2m_par_bcast_int(par, depth); /* (rank 0's: ranks may have other numbers of threads) */
-  i2m_refine_set_depth(r, depth);
-  i2m_refine_tiling_bound(r); /* (every rank: the bound on the tets that keeps cavities in blocks) */
+  i2m_refine_set_depth(r, depth); /* (and the background bound: every rank needs it) */
   rep->ranks = par->size;
   rep->depth = depth;
   rep->deterministic = o->threads.deterministic;

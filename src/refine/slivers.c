@@ -109,22 +109,15 @@ static uint64_t rng_seed(const i2m_refine_t *r, int round, uint32_t tile)
   return s ? s : 1;
 }
 
-/* The cosine of tet t's smallest dihedral angle. */
 /* How bad a tet is, as a cosine (the pass's one measure: lists, floors, trials): the largest of
- * its dihedral cosines (its smallest angle); in the last stage (caps), or, when its largest
- * angle is wide, that angle's cosine c mirrored as cap_shift - c, where cap_shift = cos(A) +
- * cos(W) for the bound A and the widest angle allowed W = 180 - 4/3 A (160 degrees at
- * A = 15): a tet with an angle of W counts as one with an angle of A, and a wider one as
- * worse.  *cmax (if not NULL) gets the largest cosine alone. */
+ * its dihedral cosines (its smallest angle); in the last stage (caps), the larger of that and
+ * its smallest cosine c (its largest angle) mirrored as cap_shift - c, where cap_shift =
+ * cos(A) + cos(W) for the bound A and the widest angle allowed W = 180 - 4/3 A (160 degrees at
+ * A = 15): a tet with an angle of W counts as one with an angle of A, a wider one as worse.
+ * *cmax (if not NULL) gets the largest cosine alone. */
 static double tet_badness(const i2m_refine_t *r, uint32_t t, double *cmax)
 {
   const i2m_dt_t *dt = r->dt;
-  if (!r->slivers->caps) {
-    const uint32_t *v = dt->tv + 4 * (size_t)t;
-    const double hi = i2m_tet_max_dihedral_cosine(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]));
-    if (cmax) *cmax = hi;
-    return hi;
-  }
   const uint32_t *v = dt->tv + 4 * (size_t)t;
   double cs[6], hi = -1.0, lo = 1.0;
   i2m_tet_dihedral_cosines(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), cs);
@@ -134,7 +127,7 @@ static double tet_badness(const i2m_refine_t *r, uint32_t t, double *cmax)
   }
   if (cmax) *cmax = hi;
   const double wide = r->slivers->cap_shift - lo;
-  return wide > hi ? wide : hi;
+  return r->slivers->caps && wide > hi ? wide : hi;
 }
 
 static double widest_allowed(double bound) { return 180.0 - bound * 4.0 / 3.0; }
@@ -633,54 +626,33 @@ static void gid_taken(i2m_refine_worker_t *w)
 
 /* A new vertex in sliver s's circumball: the interface point closest to its circumcentre
  * when that lies within delta of it (a surface vertex of that patch), else the circumcentre
- * (a free vertex).  Kept when the new tets pass every rule and the output ones are better
- * than the sliver.  A MOVE_* result. */
+ * (a free vertex); a trial as a vertex move's (try_target: a mover that is out and removed
+ * nothing), kept when the new tets pass every rule and the output ones beat the sliver.  A
+ * MOVE_* result. */
 static int try_insertion(perturb_t *P, const sliver_t *s)
 {
   i2m_refine_worker_t *w = P->w;
   i2m_refine_t *r = w->r;
-  i2m_dt_t *dt = r->dt;
-  if (i2m_dt_meta(dt, s->t) != s->meta) return MOVE_UNDONE;
   tet_geom_t g;
   tet_centre(r, s->t, &g);
   if (!isfinite(g.r2)) return MOVE_UNDONE;
   i2m_edt_probe_t pr;
   i2m_edt_probe_world(r->edt, g.cc, INFINITY, &pr);
-  double p[3];
-  vplace_t pl = {false, false, 0};
-  uint8_t kind = I2M_VK_FREE;
+  mover_t M = {0, true, {g.cc[0], g.cc[1], g.cc[2]}, fresh_gid(w), I2M_VK_FREE, {false, false, 0}, s->t, 0};
   if (isfinite(pr.d2) && pr.d2 < r->delta2) {
-    memcpy(p, pr.z, sizeof p);
-    pl.surface = true;
-    pl.tag = patch_key(pr.pair[0], pr.pair[1]);
-    kind = I2M_VK_SURFACE;
+    memcpy(M.x0, pr.z, sizeof M.x0);
+    M.kind = I2M_VK_SURFACE;
+    M.g = (vplace_t){true, false, patch_key(pr.pair[0], pr.pair[1])};
   } else {
-    memcpy(p, g.cc, sizeof p);
-    pl.near = isfinite(pr.d2) && pr.d2 <= r->four_delta2;
+    M.g.near = isfinite(pr.d2) && pr.d2 <= r->four_delta2;
   }
-  if (!tiles_zone_holds(w, p)) return MOVE_DEFERRED;
-  const double floor_cos = floor_of(r, tet_badness(r, s->t, NULL));
-  const uint32_t nborn = w->nborn, nbornv = w->nbornv;
-  P->nchanged = 0;
-  P->tried++;
-  uint32_t v;
-  w->ctx.journal = true;
-  const i2m_dt_status_t st = put_in(P, p, fresh_gid(w), kind, pl, s->t, false, &v);
-  w->ctx.journal = false;
-  if (st == I2M_DT_FAILED) return MOVE_ERROR;
-  if (st != I2M_DT_OK) return st == I2M_DT_ROLLBACK || st == I2M_DT_FULL ? MOVE_DEFERRED : MOVE_UNDONE;
-  const int ok = changed_ok(P, floor_cos, 0, 0);
-  if (ok > 0) {
+  if (!tiles_zone_holds(w, M.x0)) return MOVE_DEFERRED;
+  const int got = try_target(P, &M, M.x0, floor_of(r, tet_badness(r, s->t, NULL)));
+  if (got == MOVE_KEPT) {
     gid_taken(w);
-    P->kept++;
     P->inserted++;
-    return note_touched(P) == I2M_OK ? MOVE_KEPT : MOVE_ERROR;
   }
-  grids_out(r, v, pl);
-  w->nborn = nborn;
-  w->nbornv = nbornv;
-  if (i2m_dt_undo_insert(&w->ctx) != I2M_OK) return MOVE_ERROR;
-  return ok < 0 ? MOVE_DEFERRED : MOVE_UNDONE;
+  return got;
 }
 
 /* Tries to move each vertex of sliver s (free vertices anywhere near, surface vertices along
@@ -903,7 +875,8 @@ static void moves_so_far(const i2m_refine_t *r, const struct sliver_pass *S, int
 }
 
 /* When the stage is over and the bound asked for is higher, the next stage lists the tets
- * below it.  (With a high bound from the start, the many mild slivers would take the rounds
+ * below it; after the stage at the bound asked for, the last one (caps) lists the tets worse
+ * than it by tet_badness.  (With a high bound from the start, the many mild slivers would take the rounds
  * and leave the worst as they were: the smallest angle came out lower at 10 degrees than at
  * 5.  A kept move never lowers the smallest angle, so the second stage keeps the first's.) */
 static i2m_err_t next_stage_if_done(i2m_refine_t *r, struct sliver_pass *S)
@@ -918,10 +891,11 @@ static i2m_err_t next_stage_if_done(i2m_refine_t *r, struct sliver_pass *S)
 
 void i2m_refine_slivers_caps(i2m_refine_t *r) { r->slivers->caps = true; }
 
-i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
+/* A new pass's state (bounds, one working set per worker) and its first count of the output
+ * tets (this process's): the figures before it. */
+static i2m_err_t pass_new(i2m_refine_t *r, double bound)
 {
-  I2M_CHECK(!r->slivers, I2M_ERR_INTERNAL, "a sliver pass is already under way");
-  pieces_invalidate(r); /* (moves change the mesh) */
+  pieces_invalidate(r); /* (the pass changes the mesh) */
   I2M_CALL(i2m_calloc(1, sizeof *r->slivers, &r->slivers));
   struct sliver_pass *S = r->slivers;
   S->final_bound = bound;
@@ -932,9 +906,18 @@ i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
   i2m_err_t err = i2m_calloc((size_t)r->nworkers, sizeof *S->per, &S->per);
   for (int k = 0; err == I2M_OK && k < r->nworkers; k++) S->per[k].w = &r->workers[k];
   if (err == I2M_OK) err = collect_all(r, bound, &S->list, &S->st.min_before, &S->st.slivers_before);
+  if (err != I2M_OK) pass_free(r);
+  return err;
+}
+
+i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
+{
+  I2M_CHECK(!r->slivers, I2M_ERR_INTERNAL, "a sliver pass is already under way");
+  I2M_CALL(pass_new(r, bound));
+  struct sliver_pass *S = r->slivers;
   while (S->list.n > 0 && !(S->list.a[S->list.n - 1].angle < S->bound)) /* the first stage's (sorted) */
     S->list.n--;
-  if (err == I2M_OK) err = next_stage_if_done(r, S);
+  i2m_err_t err = next_stage_if_done(r, S);
   if (err == I2M_OK) err = i2m_refine_tiling_begin(r); /* (the workers stop taking locks) */
   if (err == I2M_OK) S->seq_gid = tiles_spare_gid(r->tiling);
   if (err == I2M_OK) err = i2m_malloc(r->tiling->ntiles + 1, sizeof *S->first, &S->first);
@@ -1119,20 +1102,9 @@ i2m_err_t i2m_refine_slivers_dist_begin(i2m_refine_t *r, double bound)
 {
   I2M_CHECK(!r->slivers && r->tiling && r->tiling->octree && dist_tracking(r), I2M_ERR_INTERNAL,
             "the distributed sliver pass needs the octree's tiles");
-  pieces_invalidate(r);
-  I2M_CALL(i2m_calloc(1, sizeof *r->slivers, &r->slivers));
-  struct sliver_pass *S = r->slivers;
-  S->final_bound = bound;
-  S->cos_final = cos(bound * (I2M_PI / 180.0));
-  S->cap_shift = S->cos_final + cos(widest_allowed(bound) * (I2M_PI / 180.0));
-  S->bound = bound < FIRST_STAGE ? bound : FIRST_STAGE;
-  S->t0 = i2m_wtime();
-  i2m_err_t err = i2m_calloc((size_t)r->nworkers, sizeof *S->per, &S->per);
-  for (int k = 0; err == I2M_OK && k < r->nworkers; k++) S->per[k].w = &r->workers[k];
-  if (err == I2M_OK) err = collect_all(r, bound, &S->list, &S->st.min_before, &S->st.slivers_before); /* (this rank's) */
-  S->list.n = 0;
-  if (err != I2M_OK) pass_free(r);
-  return err;
+  I2M_CALL(pass_new(r, bound)); /* (this rank's figures before) */
+  r->slivers->list.n = 0; /* (each task lists its tile's slivers) */
+  return I2M_OK;
 }
 
 void i2m_refine_slivers_dist_round(i2m_refine_t *r, double bound, int round, bool wide)

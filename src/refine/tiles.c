@@ -524,7 +524,11 @@ static i2m_err_t tiling_begin(i2m_refine_t *r, bool octree)
 i2m_err_t i2m_refine_tiling_begin(i2m_refine_t *r) { return tiling_begin(r, false); }
 i2m_err_t i2m_refine_octree_begin(i2m_refine_t *r) { return tiling_begin(r, true); }
 
-void i2m_refine_set_depth(i2m_refine_t *r, int depth) { r->octree_depth = depth; }
+void i2m_refine_set_depth(i2m_refine_t *r, int depth)
+{
+  r->octree_depth = depth;
+  i2m_refine_tiling_bound(r); /* (its zones bound the tets: on every rank, whoever builds the coarse mesh) */
+}
 
 void i2m_refine_tiling_end(i2m_refine_t *r)
 {

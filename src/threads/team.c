@@ -426,9 +426,9 @@ static i2m_err_t refine_deterministic(team_t *tm, const i2m_threads_opts_t *o, i
   bool coarse = o->coarse_factor > 1;
   double t0 = i2m_wtime();
   i2m_err_t err = I2M_OK;
-  if (coarse) i2m_refine_set_depth(r, o->depth > 0 ? o->depth : i2m_refine_default_depth(r, 0));
+  if (coarse) i2m_refine_set_depth(r, o->depth > 0 ? o->depth : i2m_refine_default_depth(r, 0)); /* (and the bound) */
+  else i2m_refine_tiling_bound(r);
   rep->depth = coarse ? i2m_refine_depth(r) : 0;
-  i2m_refine_tiling_bound(r);
   if (coarse) {
     i2m_refine_set_scale(r, o->coarse_factor);
     err = i2m_refine_tiling_begin(r);
@@ -545,7 +545,6 @@ i2m_err_t i2m_threads_coarse(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_t
   const double t0 = i2m_wtime();
   rep->deterministic = o->deterministic;
   rep->depth = i2m_refine_depth(r);
-  i2m_refine_tiling_bound(r); /* (the octree's depth set: its zones bound the tets) */
   i2m_refine_set_scale(r, o->coarse_factor);
   if (o->deterministic) {
     err = i2m_refine_tiling_begin(r);

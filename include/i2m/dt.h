@@ -82,7 +82,8 @@ typedef enum {
   I2M_DT_FROZEN,           /**< the cavity reaches a frozen tet; nothing changed */
   I2M_DT_STALE,            /**< the seed tet is dead or changed since it was recorded */
   I2M_DT_FULL,             /**< not enough reserved capacity; nothing changed */
-  I2M_DT_FAILED            /**< removal could not re-triangulate (never expected) */
+  I2M_DT_FAILED,           /**< removal could not re-triangulate (never expected) */
+  I2M_DT_REFUSED           /**< the context's accept hook refused the cavity; nothing changed */
 } i2m_dt_status_t;
 
 /** Boundary face of a cavity: face i of the k-th cavity tet (ki = k << 2 | i) and the
@@ -150,6 +151,12 @@ typedef struct i2m_dt_ctx {
   i2m_dt_slots_t slots;    /**< the slots this context may hand out */
   struct i2m_dt_removal *rm; /**< owned: scratch for vertex removal, created on first use */
   bool journal;            /**< i2m_dt_insert keeps what it replaces, for i2m_dt_undo_insert */
+  /** Or NULL: asked by i2m_dt_insert once the cavity of p is known, before anything changes
+   *  (the new tets are p joined to the faces i2m_dt_cavity_face lists; the cavity's tets carry
+   *  I2M_TM_MARK); false gives I2M_DT_REFUSED.  A caller that would undo most insertions at
+   *  once after a look at the new tets looks at them here instead. */
+  bool (*accept)(void *arg, const struct i2m_dt_ctx *ctx, const double p[3]);
+  void *accept_arg;
   struct i2m_dt_journal *jr; /**< owned: that record, created on first use */
   /* statistics */
   int64_t n_insert, n_remove, n_rollback, n_created, n_killed, n_walk_steps;
@@ -207,6 +214,10 @@ void i2m_dt_ctx_flush(i2m_dt_ctx_t *ctx);
  *  classify the new tets safely).  On any other status nothing changed and no lock is held. */
 i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t gid, uint8_t kind,
                               uint32_t seed, uint32_t seed_meta, uint32_t *vout);
+
+/** The vertices a, b, c of the k-th tet an insertion would make of its cavity (k < ctx->nbnd,
+ *  inside the accept hook): the tet is (a, b, c, p), in this order. */
+void i2m_dt_cavity_face(const i2m_dt_ctx_t *ctx, uint32_t k, uint32_t abc[3]);
 
 /** Undoes the last insertion of a context whose `journal` was set (sequential use, or a zone's;
  *  no other operation of the context in between): its vertex and tets go, and the tets its

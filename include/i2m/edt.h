@@ -138,6 +138,9 @@ static inline int64_t i2m_edt_voxel_k(const i2m_edt_t *e, const double u[3])
 void i2m_edt_probe_k(const i2m_edt_t *e, const double p[3], const double u[3], int64_t vox, double max_d2,
                      i2m_edt_probe_t *out);
 
+/** The label i2m_edt_probe_k gives at u (voxel vox), without the closest point. */
+int i2m_edt_label_k(const i2m_edt_t *e, const double u[3], int64_t vox);
+
 /** Prefetching for callers that probe many points: the words a probe reads lie at random in
  *  a large array, so requesting them for every point first lets the loads overlap.
  *  i2m_edt_prefetch requests the word of voxel vox (i2m_edt_voxel_k); once that word has

@@ -473,6 +473,14 @@ static I2M_INLINE uint32_t fill_tet(const fill_t *f, uint32_t k, i2m_dt_bface_t 
 }
 
 /* First pass: new tet k, its faces 0, 1, 2 filed under the edges (b, c), (c, a), (a, b). */
+void i2m_dt_cavity_face(const i2m_dt_ctx_t *ctx, uint32_t k, uint32_t abc[3])
+{
+  const fill_t f = fill_begin(ctx);
+  uint32_t l[3];
+  face_locals(&f, ctx->bnd[k], l);
+  for (int i = 0; i < 3; i++) abc[i] = ctx->held[l[i]];
+}
+
 static I2M_INLINE void fill_direct(const fill_t *f, uint32_t k, i2m_dt_bface_t b, uint32_t v)
 {
   uint32_t l[3];
@@ -769,6 +777,7 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
   i2m_dt_status_t st = cavity_seed(&s, seed, seed_meta);
   if (st == I2M_DT_OK) st = cavity_search(&s);
   search_store(&s);
+  if (st == I2M_DT_OK && ctx->accept && !ctx->accept(ctx->accept_arg, ctx, p)) st = I2M_DT_REFUSED;
   if (st == I2M_DT_OK) st = cavity_fill(ctx, p, gid, kind, vout);
   if (st != I2M_DT_OK) return cavity_abandon(ctx, st);
   ctx->ncav = ctx->nbnd = 0;

@@ -496,6 +496,24 @@ static inline int neighbour_label(const i2m_edt_t *e, uint32_t f, int64_t off, b
   return i2m_image_label_voxel(e->img, e->lo[0] + nc[0], e->lo[1] + nc[1], e->lo[2] + nc[2]);
 }
 
+/* The box voxel a probe at u (in voxel vox of K, or vox < 0) starts from, with its box
+ * coordinates in c when the labels must come from the image (or u lies outside K). */
+static I2M_INLINE int64_t probe_voxel(const i2m_edt_t *e, const double u[3], int64_t vox, int64_t c[3], bool *inside,
+                                      bool packed)
+{
+  *inside = vox >= 0;
+  return *inside && packed ? vox : voxel_clamped(e, u, c, inside);
+}
+
+int i2m_edt_label_k(const i2m_edt_t *e, const double u[3], int64_t vox)
+{
+  if (e->nboundary == 0) return 0;
+  int64_t c[3] = {0, 0, 0};
+  bool inside;
+  const int64_t idx = probe_voxel(e, u, vox, c, &inside, e->labels_packed);
+  return inside ? box_label(e, idx, c, e->labels_packed) : 0;
+}
+
 /* The probe at u (in voxel vox of K, or vox < 0 when u lies outside K or is NaN): its label
  * (when @p label is not NULL) and, unless the feature voxel of its voxel (of its projection
  * on K, for u outside K) lies farther than sqrt(max_d2), the closest point zk on the faces
@@ -508,9 +526,9 @@ static I2M_INLINE double probe_k_in(const i2m_edt_t *e, const double u[3], int64
 {
   const double *s = e->img->spacing;
   const int64_t *m = e->m;
-  int64_t c[3] = {0, 0, 0}, idx = vox;
-  bool inside = vox >= 0;
-  if (!inside || !packed) idx = voxel_clamped(e, u, c, &inside); /* (the image's labels need c) */
+  int64_t c[3] = {0, 0, 0};
+  bool inside;
+  const int64_t idx = probe_voxel(e, u, vox, c, &inside, packed);
   if (label) *label = inside ? box_label(e, idx, c, packed) : 0;
   const uint32_t f = i2m_edt_feature(e, idx);
   uint32_t fb[3];

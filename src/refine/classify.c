@@ -23,6 +23,14 @@ void tet_centre(const i2m_refine_t *r, uint32_t t, tet_geom_t *g)
   g->vox = i2m_edt_voxel_k(r->edt, g->u);
 }
 
+int centre_label(const i2m_refine_t *r, const double *const x[4])
+{
+  double cc[3], r2, u[3];
+  if (i2m_tet_circumcenter(x[0], x[1], x[2], x[3], cc, &r2) != 0) return 0; /* (flat: as tet_probe says) */
+  i2m_edt_world_to_k(r->edt, cc, u);
+  return i2m_edt_label_k(r->edt, u, i2m_edt_voxel_k(r->edt, u));
+}
+
 void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g)
 {
   const i2m_dt_t *dt = r->dt;

@@ -282,6 +282,9 @@ void tet_geom(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *
  *  voxel-frame coordinates, then the rest. */
 void tet_centre(const i2m_refine_t *r, uint32_t t, tet_geom_t *g);
 void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g);
+/** The label a tet with these vertices (in this order) gets at its creation (tet_geom's with
+ *  PROBE_NEW), without the rest of the probe. */
+int centre_label(const i2m_refine_t *r, const double *const x[4]);
 /** The list a tet (PROBE_NEW or PROBE_CLOSEST) belongs to, or -1.  R1's spacing test looks
  *  at the tet's own vertices only: when none is near, the grid is searched when the tet is
  *  popped (most tets die before their turn). */

@@ -64,6 +64,8 @@ typedef struct {
   uint64_t rng;
   int64_t tried, kept, in_place, in_place_kept; /* in_place: the moves tried without a removal */
   int64_t inserted;                         /* the points added (kept insertions) */
+  double trial_floor;                       /* the trial under way: its floor (trial_accept) */
+  uint32_t trial_cached;                    /* and its removal's tets (changed[0..)) */
 } perturb_t;
 
 struct sliver_pass {
@@ -85,6 +87,8 @@ struct sliver_pass {
   i2m_sliver_stats_t st;
   i2m_progress_t progress;
 };
+
+#define ANGLES_PASSED -2.0 /* changed_ok's floor when trial_accept saw the angles */
 
 enum { MOVE_ERROR = -1, MOVE_UNDONE = 0, MOVE_KEPT = 1, MOVE_DEFERRED = 2, MOVE_NOT_IN_PLACE = 3 };
 
@@ -115,12 +119,10 @@ static uint64_t rng_seed(const i2m_refine_t *r, int round, uint32_t tile)
  * cos(A) + cos(W) for the bound A and the widest angle allowed W = 180 - 4/3 A (160 degrees at
  * A = 15): a tet with an angle of W counts as one with an angle of A, a wider one as worse.
  * *cmax (if not NULL) gets the largest cosine alone. */
-static double tet_badness(const i2m_refine_t *r, uint32_t t, double *cmax)
+static double badness_of(const i2m_refine_t *r, const double *const x[4], double *cmax)
 {
-  const i2m_dt_t *dt = r->dt;
-  const uint32_t *v = dt->tv + 4 * (size_t)t;
   double cs[6], hi = -1.0, lo = 1.0;
-  i2m_tet_dihedral_cosines(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), cs);
+  i2m_tet_dihedral_cosines(x[0], x[1], x[2], x[3], cs);
   for (int e = 0; e < 6; e++) {
     hi = cs[e] > hi ? cs[e] : hi;
     lo = cs[e] < lo ? cs[e] : lo;
@@ -128,6 +130,19 @@ static double tet_badness(const i2m_refine_t *r, uint32_t t, double *cmax)
   if (cmax) *cmax = hi;
   const double wide = r->slivers->cap_shift - lo;
   return r->slivers->caps && wide > hi ? wide : hi;
+}
+
+static void tet_points(const i2m_dt_t *dt, uint32_t t, const double *x[4])
+{
+  const uint32_t *v = dt->tv + 4 * (size_t)t;
+  for (int i = 0; i < 4; i++) x[i] = i2m_dt_xyz(dt, v[i]);
+}
+
+static double tet_badness(const i2m_refine_t *r, uint32_t t, double *cmax)
+{
+  const double *x[4];
+  tet_points(r->dt, t, x);
+  return badness_of(r, x, cmax);
 }
 
 static double widest_allowed(double bound) { return 180.0 - bound * 4.0 / 3.0; }
@@ -256,9 +271,9 @@ static i2m_err_t star_of(perturb_t *P, uint32_t v)
 /* Tet t's label from its circumcentre, as at its creation. */
 static void label_tet(const i2m_refine_t *r, uint32_t t)
 {
-  tet_geom_t g;
-  tet_geom(r, t, PROBE_NEW, &g);
-  tinfo(r->dt, t)->label = (uint16_t)g.label;
+  const double *x[4];
+  tet_points(r->dt, t, x);
+  tinfo(r->dt, t)->label = (uint16_t)centre_label(r, x);
 }
 
 /* Where the grids place a vertex: the surface vertices' (with its patch) and R7's. */
@@ -369,7 +384,8 @@ static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, u
 
 /* Do the changed tets pass every rule, the output tets among them with their smallest
  * dihedral angle above the worst of the star's output tets (their largest cosine below
- * floor_cos)?  1 yes, 0 no, -1 the rules cannot tell inside the zone.  The first `cached`
+ * floor_cos)?  1 yes, 0 no, -1 the rules cannot tell inside the zone.  floor_cos < -1: the
+ * angles passed already (trial_accept), only the rules are left.  The first `cached`
  * changed tets' cosines are P->hole_cos's (a removal's tets, the same for every trial of its
  * vertex, unless the trial took their slots).  The changed tets from `unlabelled` on get
  * their labels once the angles pass (most trials fail on the angles, and need none); a tet
@@ -380,7 +396,7 @@ static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, u
 static int changed_ok(perturb_t *P, double floor_cos, uint32_t cached, uint32_t unlabelled)
 {
   const i2m_dt_t *dt = P->w->r->dt;
-  for (uint32_t k = 0; k < P->nchanged; k++) {
+  for (uint32_t k = 0; k < P->nchanged && floor_cos >= -1.0; k++) {
     const uint32_t t = P->changed[k];
     if (!i2m_dt_alive(dt, t)) continue; /* (a removal's tet the insertion took again) */
     if (k < cached && i2m_dt_meta(dt, t) != P->hole_meta[k]) continue; /* (its slot, a new tet's: checked below) */
@@ -524,13 +540,45 @@ static int mover_take_out(perturb_t *P, mover_t *M)
   return MOVE_KEPT;
 }
 
-/* The vertex (out) at p, on trial: journaled, so that a refusal undoes it. */
-static i2m_dt_status_t put_in_trial(perturb_t *P, const mover_t *M, const double p[3], uint32_t *moved)
+/* The insertion hook of a trial: the first test of changed_ok, on the tets the insertion would
+ * leave and make, before it changes anything (most trials fail there: an insertion undone
+ * costs as much again).  False when an output tet among them would not beat the floor. */
+static bool trial_accept(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
 {
+  const perturb_t *P = arg;
+  const i2m_refine_t *r = P->w->r;
+  const i2m_dt_t *dt = r->dt;
+  const double *x[4];
+  for (uint32_t k = 0; k < P->trial_cached; k++) { /* the removal's tets outside the cavity (marked) */
+    const uint32_t t = P->changed[k];
+    if (i2m_dt_meta(dt, t) != P->hole_meta[k] || P->hole_cos[k] < P->trial_floor) continue;
+    tet_points(dt, t, x);
+    if (centre_label(r, x) != 0) return false;
+  }
+  x[3] = p;
+  for (uint32_t k = 0; k < ctx->nbnd; k++) {
+    uint32_t abc[3];
+    i2m_dt_cavity_face(ctx, k, abc);
+    for (int i = 0; i < 3; i++) x[i] = i2m_dt_xyz(dt, abc[i]);
+    if (badness_of(r, x, NULL) >= P->trial_floor && centre_label(r, x) != 0) return false;
+  }
+  return true;
+}
+
+/* The vertex (out) at p, on trial: journaled, so that a refusal undoes it, and refused before
+ * it goes in when the angles already fail (trial_accept). */
+static i2m_dt_status_t put_in_trial(perturb_t *P, const mover_t *M, const double p[3], double floor_cos, uint32_t *moved)
+{
+  i2m_dt_ctx_t *ctx = &P->w->ctx;
   P->nchanged = M->nremoved;
-  P->w->ctx.journal = true;
+  P->trial_floor = floor_cos;
+  P->trial_cached = M->nremoved;
+  ctx->journal = true;
+  ctx->accept = trial_accept;
+  ctx->accept_arg = P;
   const i2m_dt_status_t st = put_in(P, p, M->gid, M->kind, M->g, M->start, false, moved);
-  P->w->ctx.journal = false;
+  ctx->journal = false;
+  ctx->accept = NULL;
   return st;
 }
 
@@ -559,10 +607,10 @@ static int try_target(perturb_t *P, mover_t *M, const double p[3], double floor_
   P->tried++;
   const uint32_t nborn = P->w->nborn, nbornv = P->w->nbornv;
   uint32_t moved;
-  const i2m_dt_status_t st = put_in_trial(P, M, p, &moved);
+  const i2m_dt_status_t st = put_in_trial(P, M, p, floor_cos, &moved);
   if (st == I2M_DT_FAILED) return MOVE_ERROR;
   if (st != I2M_DT_OK) return st == I2M_DT_ROLLBACK || st == I2M_DT_FULL ? MOVE_DEFERRED : MOVE_UNDONE; /* not in */
-  const int ok = changed_ok(P, floor_cos, M->nremoved, 0);
+  const int ok = changed_ok(P, ANGLES_PASSED, M->nremoved, 0);
   if (ok > 0) {
     P->kept++;
     M->v = moved;

@@ -467,6 +467,80 @@ static void undo_case(double *xyz, size_t n, size_t nvertices, uint64_t seed)
   free(vid);
 }
 
+/* The accept hook: refused, nothing changed (every record as it was); accepted, the new tets
+ * are exactly p joined to the faces the hook was shown, in their order. */
+typedef struct {
+  bool accept;
+  uint32_t n, abc[4096][3];
+  uint32_t ncav, marked; /* cavity tets when asked, and those the hook saw marked */
+} hook_seen_t;
+
+static bool record_hook(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
+{
+  hook_seen_t *h = arg;
+  (void)p;
+  h->n = ctx->nbnd < 4096 ? ctx->nbnd : 4096;
+  for (uint32_t k = 0; k < h->n; k++) i2m_dt_cavity_face(ctx, k, h->abc[k]);
+  h->ncav = ctx->ncav;
+  h->marked = 0;
+  for (uint32_t k = 0; k < ctx->ncav; k++) h->marked += (i2m_dt_meta(ctx->dt, ctx->cav[k]) & I2M_TM_MARK) != 0;
+  return h->accept;
+}
+
+static void test_accept_hook(void)
+{
+  size_t n = N_RANDOM / 50;
+  double *xyz = random_points(n);
+  int64_t *gid;
+  uint32_t *vid;
+  i2m_dt_t *dt = build_with_ids(xyz, n, 47, sizeof(uint64_t), &gid, &vid);
+  i2m_dt_ctx_t ctx;
+  CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
+  hook_seen_t *h = calloc(1, sizeof *h);
+  CU_ASSERT_FATAL(h != NULL);
+  ctx.accept = record_hook;
+  ctx.accept_arg = h;
+  ctx.journal = true;
+  int refused = 0, accepted = 0;
+  for (int m = 0; m < 200; m++) {
+    const size_t i = (size_t)(urand() * (double)n) % n;
+    double p[3];
+    for (int a = 0; a < 3; a++) p[a] = xyz[3 * i + a] + 0.3 * (2 * urand() - 1);
+    tet_records_t before;
+    records_take(dt, &before);
+    h->accept = m % 2 == 0;
+    uint32_t v;
+    const i2m_dt_status_t st = i2m_dt_insert_walk(&ctx, p, (int64_t)(n + 100 + (size_t)m), I2M_VK_FREE, dt->vtet[vid[i]], &v);
+    i2m_dt_unlock_all(&ctx);
+    CU_ASSERT(h->n > 0 && h->n < 4096);
+    CU_ASSERT(h->ncav > 0 && h->marked == h->ncav); /* (the cavity is marked when the hook is asked) */
+    if (!h->accept) {
+      CU_ASSERT_EQUAL(st, I2M_DT_REFUSED);
+      CU_ASSERT(records_same(dt, &before)); /* (marks cleared too) */
+      refused++;
+    } else {
+      CU_ASSERT_EQUAL_FATAL(st, I2M_DT_OK);
+      CU_ASSERT_EQUAL(ctx.nnew, h->n);
+      for (uint32_t k = 0; k < ctx.nnew && k < h->n; k++) {
+        const uint32_t *tv = dt->tv + 4 * (size_t)ctx.newt[k];
+        CU_ASSERT(tv[0] == h->abc[k][0] && tv[1] == h->abc[k][1] && tv[2] == h->abc[k][2] && tv[3] == v);
+      }
+      CU_ASSERT_EQUAL_FATAL(i2m_dt_undo_insert(&ctx), I2M_OK);
+      CU_ASSERT(records_same(dt, &before));
+      accepted++;
+    }
+    records_free(&before);
+  }
+  CU_ASSERT(refused == 100 && accepted == 100);
+  CU_ASSERT_EQUAL(i2m_dt_check(dt, true), I2M_OK);
+  free(h);
+  i2m_dt_ctx_free(&ctx);
+  i2m_dt_destroy(&dt);
+  free(gid);
+  free(vid);
+  free(xyz);
+}
+
 static void test_undo_random(void)
 {
   size_t n = N_RANDOM / 50;
@@ -657,6 +731,7 @@ static const test_case_t cases[] = {
     {"move lattice points: onto their places in place, by h/8 reinserted, as if built anew", test_move_lattice},
     {"large star: remove, insert again", test_large_star_remove_insert},
     {"journaled insertions undone: every tet back in its slot (random points)", test_undo_random},
+    {"accept hook: a refusal changes nothing, an acceptance makes the tets it was shown", test_accept_hook},
     {"journaled insertions undone: every tet back in its slot (lattice)", test_undo_lattice},
 };
 TEST_MAIN("delaunay kernel", cases)

@@ -30,6 +30,8 @@
 #include <string.h>
 
 #define MOVES_PER_VERTEX 8 /* random targets tried per vertex of a sliver */
+#define PICKS 4            /* points of a sliver's picking region tried after its circumcentre */
+#define PICK_RADIUS 0.5    /* the picking region: this times the circumradius around the centre */
 #define NEAR 0.2           /* at a distance from NEAR to REACH times the vertex's shortest edge */
 #define REACH 0.5
 #define WIDE_MOVES 32      /* in a wide round (after a round that kept no move): more, and farther */
@@ -104,6 +106,18 @@ static void sort4_gid(i2m_gidx_t g[4], uint32_t v[4])
 }
 
 static double uniform01(uint64_t *s) { return (double)(i2m_xorshift64(s) >> 11) * 0x1.0p-53; }
+
+/* A random point of the unit ball at a squared norm of min_n2 at least (rejection from the
+ * cube); returns its squared norm. */
+static double random_in_ball(uint64_t *s, double d[3], double min_n2)
+{
+  double n2;
+  do {
+    for (int a = 0; a < 3; a++) d[a] = 2.0 * uniform01(s) - 1.0;
+    n2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  } while (n2 > 1.0 || n2 < min_n2);
+  return n2;
+}
 
 /* The generator of one (round, tile) pair (TILE_NONE: the sequential pass). */
 static uint64_t rng_seed(const i2m_refine_t *r, int round, uint32_t tile)
@@ -672,21 +686,17 @@ static void gid_taken(i2m_refine_worker_t *w)
   else w->r->slivers->seq_gid++;
 }
 
-/* A new vertex in sliver s's circumball: the interface point closest to its circumcentre
- * when that lies within delta of it (a surface vertex of that patch), else the circumcentre
- * (a free vertex); a trial as a vertex move's (try_target: a mover that is out and removed
- * nothing), kept when the new tets pass every rule and the output ones beat the sliver.  A
- * MOVE_* result. */
-static int try_insertion(perturb_t *P, const sliver_t *s)
+/* A new vertex for sliver s near c: the interface point closest to c when that lies within
+ * delta of it (a surface vertex of that patch), else c (a free vertex); a trial as a vertex
+ * move's (try_target: a mover that is out and removed nothing), kept when the new tets pass
+ * every rule and the output ones beat the floor.  A MOVE_* result. */
+static int insert_at(perturb_t *P, const sliver_t *s, const double c[3], double floor_cos)
 {
   i2m_refine_worker_t *w = P->w;
   i2m_refine_t *r = w->r;
-  tet_geom_t g;
-  tet_centre(r, s->t, &g);
-  if (!isfinite(g.r2)) return MOVE_UNDONE;
   i2m_edt_probe_t pr;
-  i2m_edt_probe_world(r->edt, g.cc, INFINITY, &pr);
-  mover_t M = {0, true, {g.cc[0], g.cc[1], g.cc[2]}, fresh_gid(w), I2M_VK_FREE, {false, false, 0}, s->t, 0};
+  i2m_edt_probe_world(r->edt, c, INFINITY, &pr);
+  mover_t M = {0, true, {c[0], c[1], c[2]}, fresh_gid(w), I2M_VK_FREE, {false, false, 0}, s->t, 0};
   if (isfinite(pr.d2) && pr.d2 < r->delta2) {
     memcpy(M.x0, pr.z, sizeof M.x0);
     M.kind = I2M_VK_SURFACE;
@@ -695,10 +705,31 @@ static int try_insertion(perturb_t *P, const sliver_t *s)
     M.g.near = isfinite(pr.d2) && pr.d2 <= r->four_delta2;
   }
   if (!tiles_zone_holds(w, M.x0)) return MOVE_DEFERRED;
-  const int got = try_target(P, &M, M.x0, floor_of(r, tet_badness(r, s->t, NULL)));
+  const int got = try_target(P, &M, M.x0, floor_cos);
   if (got == MOVE_KEPT) {
     gid_taken(w);
     P->inserted++;
+  }
+  return got;
+}
+
+/* A new vertex in sliver s's circumball (insert_at): at its circumcentre, else at up to PICKS
+ * random points of its picking region (the ball of PICK_RADIUS times the circumradius around
+ * the circumcentre, Li-Teng), until one is kept.  A refused point costs a cavity search
+ * (trial_accept), far less than a vertex move's removal.  A MOVE_* result. */
+static int try_insertion(perturb_t *P, const sliver_t *s)
+{
+  tet_geom_t g;
+  tet_centre(P->w->r, s->t, &g);
+  if (!isfinite(g.r2)) return MOVE_UNDONE;
+  const double floor_cos = floor_of(P->w->r, tet_badness(P->w->r, s->t, NULL));
+  const double reach = PICK_RADIUS * sqrt(g.r2);
+  int got = insert_at(P, s, g.cc, floor_cos);
+  for (int k = 0; k < PICKS && got != MOVE_KEPT && got != MOVE_ERROR; k++) {
+    double d[3];
+    random_in_ball(&P->rng, d, 0.0);
+    const double p[3] = {g.cc[0] + reach * d[0], g.cc[1] + reach * d[1], g.cc[2] + reach * d[2]};
+    got = insert_at(P, s, p, floor_cos);
   }
   return got;
 }
@@ -758,11 +789,8 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
     const double reach = wide ? WIDE_REACH : REACH;
     for (int m = 0; m < targets; m++) {
       /* a random direction, at a distance from NEAR to `reach` times the shortest edge */
-      double d[3], n2;
-      do {
-        for (int a = 0; a < 3; a++) d[a] = 2.0 * uniform01(&P->rng) - 1.0;
-        n2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-      } while (n2 > 1.0 || n2 < 1e-6);
+      double d[3];
+      const double n2 = random_in_ball(&P->rng, d, 1e-6);
       const double len = lmin * (NEAR + (reach - NEAR) * uniform01(&P->rng)) / sqrt(n2);
       double p[3] = {M.x0[0] + len * d[0], M.x0[1] + len * d[1], M.x0[2] + len * d[2]};
       if (surface && !onto_patch(w->r, M.g.tag, p)) continue;

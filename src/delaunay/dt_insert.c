@@ -472,15 +472,15 @@ static I2M_INLINE uint32_t fill_tet(const fill_t *f, uint32_t k, i2m_dt_bface_t 
   return t;
 }
 
-/* First pass: new tet k, its faces 0, 1, 2 filed under the edges (b, c), (c, a), (a, b). */
 void i2m_dt_cavity_face(const i2m_dt_ctx_t *ctx, uint32_t k, uint32_t abc[3])
 {
   const fill_t f = fill_begin(ctx);
   uint32_t l[3];
-  face_locals(&f, ctx->bnd[k], l);
+  face_locals(&f, ctx->bnd[k], l); /* (fill_tet's vertices, in its order) */
   for (int i = 0; i < 3; i++) abc[i] = ctx->held[l[i]];
 }
 
+/* First pass: new tet k, its faces 0, 1, 2 filed under the edges (b, c), (c, a), (a, b). */
 static I2M_INLINE void fill_direct(const fill_t *f, uint32_t k, i2m_dt_bface_t b, uint32_t v)
 {
   uint32_t l[3];

@@ -32,6 +32,8 @@
 #define MOVES_PER_VERTEX 8 /* random targets tried per vertex of a sliver */
 #define PICKS 4            /* points of a sliver's picking region tried after its circumcentre */
 #define PICK_RADIUS 0.5    /* the picking region: this times the circumradius around the centre */
+#define WIDE_PICKS 32      /* in a wide round: more points, from a larger region */
+#define WIDE_PICK_RADIUS 0.8
 #define NEAR 0.2           /* at a distance from NEAR to REACH times the vertex's shortest edge */
 #define REACH 0.5
 #define WIDE_MOVES 32      /* in a wide round (after a round that kept no move): more, and farther */
@@ -563,7 +565,7 @@ static bool trial_accept(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
   const i2m_refine_t *r = P->w->r;
   const i2m_dt_t *dt = r->dt;
   const double *x[4];
-  for (uint32_t k = 0; k < P->trial_cached; k++) { /* the removal's tets outside the cavity (marked) */
+  for (uint32_t k = 0; k < P->trial_cached; k++) { /* the removal's tets that stay (the cavity's carry its mark) */
     const uint32_t t = P->changed[k];
     if (i2m_dt_meta(dt, t) != P->hole_meta[k] || P->hole_cos[k] < P->trial_floor) continue;
     tet_points(dt, t, x);
@@ -723,9 +725,11 @@ static int try_insertion(perturb_t *P, const sliver_t *s)
   tet_centre(P->w->r, s->t, &g);
   if (!isfinite(g.r2)) return MOVE_UNDONE;
   const double floor_cos = floor_of(P->w->r, tet_badness(P->w->r, s->t, NULL));
-  const double reach = PICK_RADIUS * sqrt(g.r2);
+  const bool wide = P->w->r->slivers->wide;
+  const double reach = (wide ? WIDE_PICK_RADIUS : PICK_RADIUS) * sqrt(g.r2);
+  const int picks = wide ? WIDE_PICKS : PICKS;
   int got = insert_at(P, s, g.cc, floor_cos);
-  for (int k = 0; k < PICKS && got != MOVE_KEPT && got != MOVE_ERROR; k++) {
+  for (int k = 0; k < picks && got != MOVE_KEPT && got != MOVE_ERROR; k++) {
     double d[3];
     random_in_ball(&P->rng, d, 0.0);
     const double p[3] = {g.cc[0] + reach * d[0], g.cc[1] + reach * d[1], g.cc[2] + reach * d[2]};

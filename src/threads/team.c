@@ -87,7 +87,9 @@ static void pause_arrive(team_t *tm)
 }
 
 /* A step found the capacity exhausted: the first such thread grows the arrays once every
- * other thread has stopped or sleeps; later ones just wait for it. */
+ * other thread has stopped or sleeps; later ones just wait for it.  When the phase ends
+ * meanwhile (another thread failed: it left its loop and will never stop here), nothing
+ * grows: the team is done. */
 static void pause_request(team_t *tm)
 {
   pthread_mutex_lock(&tm->mu);
@@ -97,8 +99,10 @@ static void pause_request(team_t *tm)
     return;
   }
   atomic_store_explicit(&tm->pause_req, 1, memory_order_release);
-  while (tm->arrived + tm->idle < tm->T - 1) pthread_cond_wait(&tm->cv, &tm->mu);
-  i2m_err_t err = i2m_refine_grow(tm->r); /* every other thread is stopped or asleep */
+  while (tm->arrived + tm->idle < tm->T - 1 && !atomic_load_explicit(&tm->done, memory_order_relaxed))
+    pthread_cond_wait(&tm->cv, &tm->mu);
+  const bool ended = tm->arrived + tm->idle < tm->T - 1;
+  i2m_err_t err = ended ? I2M_OK : i2m_refine_grow(tm->r); /* every other thread is stopped or asleep */
   tm->pauses++;
   tm->arrived = 0;
   tm->pause_gen++;

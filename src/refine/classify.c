@@ -8,12 +8,10 @@
 
 #include <string.h>
 
-void tet_centre(const i2m_refine_t *r, uint32_t t, tet_geom_t *g)
+/* The centre, radius and voxel of the tet with these vertices (in this order). */
+static I2M_INLINE void centre_of(const i2m_refine_t *r, const double *const x[4], tet_geom_t *g)
 {
-  const i2m_dt_t *dt = r->dt;
-  const uint32_t *v = dt->tv + 4 * (size_t)t;
-  if (i2m_tet_circumcenter(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), g->cc,
-                           &g->r2) != 0) {
+  if (i2m_tet_circumcenter(x[0], x[1], x[2], x[3], g->cc, &g->r2) != 0) {
     g->r2 = INFINITY;
     g->u[0] = g->u[1] = g->u[2] = NAN;
     g->vox = -1;
@@ -23,12 +21,18 @@ void tet_centre(const i2m_refine_t *r, uint32_t t, tet_geom_t *g)
   g->vox = i2m_edt_voxel_k(r->edt, g->u);
 }
 
+void tet_centre(const i2m_refine_t *r, uint32_t t, tet_geom_t *g)
+{
+  const double *x[4];
+  tet_points(r->dt, t, x);
+  centre_of(r, x, g);
+}
+
 int centre_label(const i2m_refine_t *r, const double *const x[4])
 {
-  double cc[3], r2, u[3];
-  if (i2m_tet_circumcenter(x[0], x[1], x[2], x[3], cc, &r2) != 0) return 0; /* (flat: as tet_probe says) */
-  i2m_edt_world_to_k(r->edt, cc, u);
-  return i2m_edt_label_k(r->edt, u, i2m_edt_voxel_k(r->edt, u));
+  tet_geom_t g;
+  centre_of(r, x, &g);
+  return isfinite(g.r2) ? i2m_edt_label_k(r->edt, g.u, g.vox) : 0; /* (flat: 0, as tet_probe says) */
 }
 
 void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g)

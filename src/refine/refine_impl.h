@@ -19,6 +19,12 @@ typedef struct {
 static inline tet_info_t *tinfo(const i2m_dt_t *dt, uint32_t t) { return (tet_info_t *)i2m_dt_payload(dt, t); }
 
 /** Does tet t belong to the output mesh (alive, labelled)? */
+/* Tet t's vertex coordinates, in its order. */
+static inline void tet_points(const i2m_dt_t *dt, uint32_t t, const double *x[4])
+{
+  const uint32_t *v = dt->tv + 4 * (size_t)t;
+  for (int i = 0; i < 4; i++) x[i] = i2m_dt_xyz(dt, v[i]);
+}
 static inline bool tet_kept(const i2m_dt_t *dt, uint32_t t) { return i2m_dt_alive(dt, t) && tinfo(dt, t)->label != 0; }
 
 /** A tet's circumcentre (world), squared circumradius (INFINITY when flat), label, and the

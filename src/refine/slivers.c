@@ -69,7 +69,6 @@ typedef struct {
   int64_t tried, kept, in_place, in_place_kept; /* in_place: the moves tried without a removal */
   int64_t inserted;                         /* the points added (kept insertions) */
   double trial_floor;                       /* the trial under way: its floor (trial_accept) */
-  uint32_t trial_cached;                    /* and its removal's tets (changed[0..)) */
 } perturb_t;
 
 struct sliver_pass {
@@ -91,8 +90,6 @@ struct sliver_pass {
   i2m_sliver_stats_t st;
   i2m_progress_t progress;
 };
-
-#define ANGLES_PASSED -2.0 /* changed_ok's floor when trial_accept saw the angles */
 
 enum { MOVE_ERROR = -1, MOVE_UNDONE = 0, MOVE_KEPT = 1, MOVE_DEFERRED = 2, MOVE_NOT_IN_PLACE = 3 };
 
@@ -146,12 +143,6 @@ static double badness_of(const i2m_refine_t *r, const double *const x[4], double
   if (cmax) *cmax = hi;
   const double wide = r->slivers->cap_shift - lo;
   return r->slivers->caps && wide > hi ? wide : hi;
-}
-
-static void tet_points(const i2m_dt_t *dt, uint32_t t, const double *x[4])
-{
-  const uint32_t *v = dt->tv + 4 * (size_t)t;
-  for (int i = 0; i < 4; i++) x[i] = i2m_dt_xyz(dt, v[i]);
 }
 
 static double tet_badness(const i2m_refine_t *r, uint32_t t, double *cmax)
@@ -400,8 +391,8 @@ static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, u
 
 /* Do the changed tets pass every rule, the output tets among them with their smallest
  * dihedral angle above the worst of the star's output tets (their largest cosine below
- * floor_cos)?  1 yes, 0 no, -1 the rules cannot tell inside the zone.  floor_cos < -1: the
- * angles passed already (trial_accept), only the rules are left.  The first `cached`
+ * floor_cos)?  1 yes, 0 no, -1 the rules cannot tell inside the zone.  With angles_seen, the
+ * angles passed already (trial_accept): only the rules are left.  The first `cached`
  * changed tets' cosines are P->hole_cos's (a removal's tets, the same for every trial of its
  * vertex, unless the trial took their slots).  The changed tets from `unlabelled` on get
  * their labels once the angles pass (most trials fail on the angles, and need none); a tet
@@ -409,10 +400,10 @@ static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, u
  * label do not count, either way: with them in the floor, a surface vertex whose star held an
  * outside sliver could make an output tet nearly as flat, and the second stage made tets below
  * the first stage's 5 degrees again, 82 on the liver at 6 M tets in its first round.) */
-static int changed_ok(perturb_t *P, double floor_cos, uint32_t cached, uint32_t unlabelled)
+static int changed_ok(perturb_t *P, double floor_cos, bool angles_seen, uint32_t cached, uint32_t unlabelled)
 {
   const i2m_dt_t *dt = P->w->r->dt;
-  for (uint32_t k = 0; k < P->nchanged && floor_cos >= -1.0; k++) {
+  for (uint32_t k = 0; k < P->nchanged && !angles_seen; k++) {
     const uint32_t t = P->changed[k];
     if (!i2m_dt_alive(dt, t)) continue; /* (a removal's tet the insertion took again) */
     if (k < cached && i2m_dt_meta(dt, t) != P->hole_meta[k]) continue; /* (its slot, a new tet's: checked below) */
@@ -496,7 +487,7 @@ static int move_in_place(perturb_t *P, uint32_t v, const double x0[3], const dou
     P->saved[2 * k] = tinfo(dt, P->changed[k])->label;
     label_tet(r, P->changed[k]);
   }
-  const int ok = changed_ok(P, floor_cos, 0, P->nchanged);
+  const int ok = changed_ok(P, floor_cos, false, 0, P->nchanged);
   if (ok > 0) {
     P->kept++;
     P->in_place_kept++;
@@ -565,7 +556,9 @@ static bool trial_accept(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
   const i2m_refine_t *r = P->w->r;
   const i2m_dt_t *dt = r->dt;
   const double *x[4];
-  for (uint32_t k = 0; k < P->trial_cached; k++) { /* the removal's tets that stay (the cavity's carry its mark) */
+  /* the removal's tets that stay (the list holds only them yet; a cavity tet carries the
+   * mark, so its meta differs) */
+  for (uint32_t k = 0; k < P->nchanged; k++) {
     const uint32_t t = P->changed[k];
     if (i2m_dt_meta(dt, t) != P->hole_meta[k] || P->hole_cos[k] < P->trial_floor) continue;
     tet_points(dt, t, x);
@@ -588,7 +581,6 @@ static i2m_dt_status_t put_in_trial(perturb_t *P, const mover_t *M, const double
   i2m_dt_ctx_t *ctx = &P->w->ctx;
   P->nchanged = M->nremoved;
   P->trial_floor = floor_cos;
-  P->trial_cached = M->nremoved;
   ctx->journal = true;
   ctx->accept = trial_accept;
   ctx->accept_arg = P;
@@ -626,7 +618,7 @@ static int try_target(perturb_t *P, mover_t *M, const double p[3], double floor_
   const i2m_dt_status_t st = put_in_trial(P, M, p, floor_cos, &moved);
   if (st == I2M_DT_FAILED) return MOVE_ERROR;
   if (st != I2M_DT_OK) return st == I2M_DT_ROLLBACK || st == I2M_DT_FULL ? MOVE_DEFERRED : MOVE_UNDONE; /* not in */
-  const int ok = changed_ok(P, ANGLES_PASSED, M->nremoved, 0);
+  const int ok = changed_ok(P, floor_cos, true, M->nremoved, 0);
   if (ok > 0) {
     P->kept++;
     M->v = moved;

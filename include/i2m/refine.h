@@ -134,11 +134,8 @@ typedef struct {
   int64_t tried, kept;                   /**< moves (and insertions) tried and kept */
   int64_t inserted;                      /**< of the kept: points inserted (new vertices) */
   double seconds;
+  i2m_dihedral_bands_t bands_before;     /**< this process's output tets' dihedral bands before */
 } i2m_sliver_stats_t;
-
-/** The dihedral bands of the output tets (kept: alive, labelled) of this process's
- *  triangulation, before any extraction (OpenMP threads): the figures before the sliver pass. */
-void i2m_refine_dihedral_bands(const i2m_refine_t *r, i2m_dihedral_bands_t *b);
 
 /** Sliver perturbation, after refinement and before extraction (no other work on the mesh):
  *  for the output tets whose smallest dihedral angle is below @p bound degrees, worst first,

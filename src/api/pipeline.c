@@ -61,12 +61,18 @@ static i2m_err_t refine(i2m_pipeline_t *p)
 static i2m_err_t perturb_slivers(i2m_pipeline_t *p)
 {
   const i2m_threads_opts_t to = threads_opts(&p->opt);
-  i2m_refine_dihedral_bands(p->ref, &p->bands_before); /* (this rank's tets: summed) */
+  i2m_err_t err;
+  if (!p->distributed) {
+    err = i2m_par_agree(p->par, i2m_threads_perturb_slivers(p->ref, &to, p->opt.sliver_angle, &p->slivers));
+  } else {
+    const i2m_dist_opts_t d = {to, NULL, -1};
+    err = i2m_dist_perturb_slivers(p->par, p->ref, &d, p->opt.sliver_angle, &p->slivers); /* (agreed on inside) */
+  }
+  if (err != I2M_OK) return err;
+  p->bands_before = p->slivers.bands_before; /* (the pass's first look at the mesh: this rank's tets) */
   i2m_par_sum_i64(p->par, p->bands_before.below, I2M_DIHEDRAL_NLOW);
   i2m_par_sum_i64(p->par, p->bands_before.above, I2M_DIHEDRAL_NHIGH);
-  if (!p->distributed) return i2m_par_agree(p->par, i2m_threads_perturb_slivers(p->ref, &to, p->opt.sliver_angle, &p->slivers));
-  const i2m_dist_opts_t d = {to, NULL, -1};
-  return i2m_dist_perturb_slivers(p->par, p->ref, &d, p->opt.sliver_angle, &p->slivers); /* (agreed on inside) */
+  return I2M_OK;
 }
 
 /* The fragments' repair and the census ask the transform about the image; under MPI the

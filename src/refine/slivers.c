@@ -41,6 +41,7 @@
 #define ROUNDS 20          /* rounds over the slivers left (later ones are short) */
 #define WALK_STEPS 64      /* a target farther than this from the vertex's old star: deferred */
 #define FIRST_STAGE 5.0    /* degrees: a higher bound is reached after the slivers below this */
+#define WATCH_MARGIN 5.0   /* degrees: the tets watched have an angle below the bound plus this */
 
 /* A sliver, with its vertices' global ids in increasing order (the order of the work). */
 typedef struct {
@@ -53,6 +54,19 @@ typedef struct {
   sliver_t *a;
   size_t n, cap;
 } sliver_list_t;
+
+/* A watched tet (one process): an output tet with an angle below the bound plus WATCH_MARGIN
+ * or too wide, as it was when last changed (in round `round`, 0: before the pass), with its
+ * largest and smallest dihedral cosines. */
+typedef struct {
+  uint32_t t, meta, round;
+  double hi, lo;
+} watched_t;
+
+typedef struct {
+  watched_t *a;
+  size_t n, cap;
+} watch_list_t;
 
 /* One thread's working set. */
 typedef struct {
@@ -89,6 +103,14 @@ struct sliver_pass {
   uint32_t *active, nactive;
   i2m_sliver_stats_t st;
   i2m_progress_t progress;
+  /* One process keeps the tets worth a look up to date (watch_*): a stage's list and the
+   * closing figures come from them, not from a pass over the mesh (the angles of every tet:
+   * a quarter of the pass's time when it made four) */
+  bool watching;
+  double cos_watch;       /* cos(final_bound + WATCH_MARGIN) */
+  watch_list_t watch;     /* every output tet worth a look has a valid entry (watch_valid) */
+  uint16_t *changed_in;   /* [nchanged_in] per tet slot: the round that last changed it, 0 none */
+  size_t nchanged_in;
 };
 
 enum { MOVE_ERROR = -1, MOVE_UNDONE = 0, MOVE_KEPT = 1, MOVE_DEFERRED = 2, MOVE_NOT_IN_PLACE = 3 };
@@ -132,24 +154,52 @@ static uint64_t rng_seed(const i2m_refine_t *r, int round, uint32_t tile)
  * cos(A) + cos(W) for the bound A and the widest angle allowed W = 180 - 4/3 A (160 degrees at
  * A = 15): a tet with an angle of W counts as one with an angle of A, a wider one as worse.
  * *cmax (if not NULL) gets the largest cosine alone. */
+static double badness_from(const struct sliver_pass *S, double hi, double lo)
+{
+  const double wide = S->cap_shift - lo;
+  return S->caps && wide > hi ? wide : hi;
+}
+
+/* The largest and smallest of a tet's dihedral cosines cs. */
+static void extremes_of(const double cs[6], double *hi, double *lo)
+{
+  *hi = -1.0;
+  *lo = 1.0;
+  for (int e = 0; e < 6; e++) {
+    *hi = cs[e] > *hi ? cs[e] : *hi;
+    *lo = cs[e] < *lo ? cs[e] : *lo;
+  }
+}
+
 static double badness_of(const i2m_refine_t *r, const double *const x[4], double *cmax)
 {
-  double cs[6], hi = -1.0, lo = 1.0;
+  double cs[6], hi, lo;
   i2m_tet_dihedral_cosines(x[0], x[1], x[2], x[3], cs);
-  for (int e = 0; e < 6; e++) {
-    hi = cs[e] > hi ? cs[e] : hi;
-    lo = cs[e] < lo ? cs[e] : lo;
-  }
+  extremes_of(cs, &hi, &lo);
   if (cmax) *cmax = hi;
-  const double wide = r->slivers->cap_shift - lo;
-  return r->slivers->caps && wide > hi ? wide : hi;
+  return badness_from(r->slivers, hi, lo);
+}
+
+static void tet_cosines(const i2m_refine_t *r, uint32_t t, double cs[6])
+{
+  const double *x[4];
+  tet_points(r->dt, t, x);
+  i2m_tet_dihedral_cosines(x[0], x[1], x[2], x[3], cs);
+}
+
+static void tet_extremes(const i2m_refine_t *r, uint32_t t, double *hi, double *lo)
+{
+  double cs[6];
+  tet_cosines(r, t, cs);
+  extremes_of(cs, hi, lo);
 }
 
 static double tet_badness(const i2m_refine_t *r, uint32_t t, double *cmax)
 {
-  const double *x[4];
-  tet_points(r->dt, t, x);
-  return badness_of(r, x, cmax);
+  double hi, lo;
+  tet_extremes(r, t, &hi, &lo);
+  if (cmax) *cmax = hi;
+  return badness_from(r->slivers, hi, lo);
 }
 
 static double widest_allowed(double bound) { return 180.0 - bound * 4.0 / 3.0; }
@@ -161,27 +211,6 @@ static double floor_of(const i2m_refine_t *r, double worst)
 {
   const struct sliver_pass *S = r->slivers;
   return S->caps && worst > S->cos_final ? S->cos_final : worst;
-}
-
-void i2m_refine_dihedral_bands(const i2m_refine_t *r, i2m_dihedral_bands_t *b)
-{
-  const i2m_dt_t *dt = r->dt;
-  const int64_t nt = i2m_dt_ntets_slots(dt);
-  memset(b, 0, sizeof *b);
-  I2M_OMP(omp parallel)
-  {
-    i2m_dihedral_bands_t mine = {{0}, {0}};
-    I2M_OMP(omp for schedule(static))
-    for (int64_t t = 0; t < nt; t++) {
-      if (!tet_kept(dt, (uint32_t)t)) continue;
-      const uint32_t *v = dt->tv + 4 * (size_t)t;
-      double cs[6];
-      i2m_tet_dihedral_cosines(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]), cs);
-      i2m_dihedral_bands_add(&mine, cs);
-    }
-    I2M_OMP(omp critical(i2m_dihedral_bands))
-    i2m_dihedral_bands_merge(b, &mine);
-  }
 }
 
 static i2m_err_t grow_list(uint32_t **a, uint32_t *cap, uint32_t need)
@@ -823,21 +852,95 @@ static i2m_err_t consider(const i2m_dt_t *dt, uint32_t t, double c, double cos_b
   return list_push(L, &s);
 }
 
+/* ---- the watched tets (one process) ---- */
+
+static bool worth_watching(const struct sliver_pass *S, double hi, double lo)
+{
+  return hi > S->cos_watch || S->cap_shift - lo > S->cos_final;
+}
+
+static i2m_err_t watch_push(watch_list_t *W, watched_t e)
+{
+  if (W->n == W->cap) {
+    const size_t c = W->cap ? 2 * W->cap : 1024;
+    I2M_CALL(i2m_realloc(c, sizeof *W->a, &W->a));
+    W->cap = c;
+  }
+  W->a[W->n++] = e;
+  return I2M_OK;
+}
+
+/* Is the entry the tet as it is now?  (An entry of a tet changed since was followed by one of
+ * the change's round, if the tet was still worth a look; a move in place keeps the slot's
+ * generation, hence the round.) */
+static bool watch_valid(const i2m_refine_t *r, const watched_t *e)
+{
+  const struct sliver_pass *S = r->slivers;
+  const uint32_t last = e->t < S->nchanged_in ? S->changed_in[e->t] : 0;
+  return last == e->round && i2m_dt_meta(r->dt, e->t) == e->meta && tet_kept(r->dt, e->t);
+}
+
+/* A stage's list from the watched tets (the stale entries dropped): the list a pass over the
+ * mesh would give, as every output tet worse than a stage's bound is watched. */
+static i2m_err_t list_from_watch(const i2m_refine_t *r, struct sliver_pass *S)
+{
+  const double cos_bound = cos(S->bound * (I2M_PI / 180.0));
+  size_t n = 0;
+  S->list.n = 0;
+  for (size_t k = 0; k < S->watch.n; k++) {
+    const watched_t e = S->watch.a[k];
+    if (!watch_valid(r, &e)) continue;
+    S->watch.a[n++] = e;
+    I2M_CALL(consider(r->dt, e.t, badness_from(S, e.hi, e.lo), cos_bound, &S->list));
+  }
+  S->watch.n = n;
+  if (S->list.n > 1) qsort(S->list.a, S->list.n, sizeof *S->list.a, cmp_sliver);
+  return I2M_OK;
+}
+
+/* The closing figures (collect_all's) from the watched tets; false when no tet is watched for
+ * its smallest angle (every one above the bound plus the margin): then only a pass tells the
+ * smallest angle. */
+static bool figures_from_watch(const i2m_refine_t *r, double bound, double *min_all, int64_t *nbelow)
+{
+  const struct sliver_pass *S = r->slivers;
+  const double cos_bound = cos(bound * (I2M_PI / 180.0));
+  double m = -1.0;
+  int64_t below = 0;
+  for (size_t k = 0; k < S->watch.n; k++) {
+    const watched_t *e = &S->watch.a[k];
+    if (!watch_valid(r, e)) continue;
+    m = e->hi > m ? e->hi : m;
+    below += e->hi > cos_bound;
+  }
+  if (!(m > S->cos_watch)) return false;
+  *min_all = i2m_degrees_of_cosine(m);
+  *nbelow = below;
+  return true;
+}
+
 #define COLLECT_CHUNKS 64
 
 /* The output tets worse than the bound (tet_badness), in order; the smallest angle of all
- * output tets and (nbelow, if not NULL) the number of those whose smallest angle is below the
- * bound: fixed chunks of the slots in parallel, joined in chunk order, then sorted (the same
- * list on any number of threads). */
-static i2m_err_t collect_all(const i2m_refine_t *r, double bound, sliver_list_t *L, double *min_all, int64_t *nbelow)
+ * output tets, the number of those whose smallest angle is below the bound (nbelow, if not
+ * NULL), the tets worth watching (into W, if not NULL) and the dihedral bands (into bands, if
+ * not NULL): fixed chunks of the slots in parallel, joined in chunk order, then sorted (the
+ * same list on any number of threads). */
+static i2m_err_t collect_all(const i2m_refine_t *r, double bound, sliver_list_t *L, double *min_all, int64_t *nbelow,
+                             watch_list_t *W, i2m_dihedral_bands_t *bands)
 {
+  const struct sliver_pass *S = r->slivers;
   const i2m_dt_t *dt = r->dt;
   const uint32_t nt = i2m_dt_ntets_slots(dt);
   const double cos_bound = cos(bound * (I2M_PI / 180.0));
   sliver_list_t part[COLLECT_CHUNKS];
+  watch_list_t wpart[COLLECT_CHUNKS];
+  i2m_dihedral_bands_t bpart[COLLECT_CHUNKS];
   double maxc[COLLECT_CHUNKS];
   int64_t below = 0;
   memset(part, 0, sizeof part);
+  memset(wpart, 0, sizeof wpart);
+  memset(bpart, 0, sizeof bpart);
   int failed = 0;
   I2M_OMP(omp parallel for schedule(dynamic, 1) reduction(| : failed) reduction(+ : below))
   for (int c = 0; c < COLLECT_CHUNKS; c++) {
@@ -846,19 +949,27 @@ static i2m_err_t collect_all(const i2m_refine_t *r, double bound, sliver_list_t 
     maxc[c] = -1.0;
     for (uint32_t t = lo; t < hi && !failed; t++) {
       if (!tet_kept(dt, t)) continue;
-      double m;
-      const double bad = tet_badness(r, t, &m);
-      maxc[c] = m > maxc[c] ? m : maxc[c];
-      below += m > cos_bound;
-      failed |= consider(dt, t, bad, cos_bound, &part[c]) != I2M_OK;
+      double cs[6], chi, clo;
+      tet_cosines(r, t, cs);
+      extremes_of(cs, &chi, &clo);
+      if (bands) i2m_dihedral_bands_add(&bpart[c], cs);
+      maxc[c] = chi > maxc[c] ? chi : maxc[c];
+      below += chi > cos_bound;
+      failed |= consider(dt, t, badness_from(S, chi, clo), cos_bound, &part[c]) != I2M_OK;
+      if (W && worth_watching(S, chi, clo))
+        failed |= watch_push(&wpart[c], (watched_t){t, i2m_dt_meta(dt, t), 0, chi, clo}) != I2M_OK;
     }
   }
   if (nbelow) *nbelow = below;
   L->n = 0;
   double m = -1.0;
+  if (bands) memset(bands, 0, sizeof *bands);
   for (int c = 0; c < COLLECT_CHUNKS; c++) {
+    if (bands) i2m_dihedral_bands_merge(bands, &bpart[c]);
     for (size_t i = 0; i < part[c].n && !failed; i++) failed |= list_push(L, &part[c].a[i]) != I2M_OK;
+    for (size_t i = 0; W && i < wpart[c].n && !failed; i++) failed |= watch_push(W, wpart[c].a[i]) != I2M_OK;
     i2m_free(&part[c].a);
+    i2m_free(&wpart[c].a);
     m = maxc[c] > m ? maxc[c] : m;
   }
   I2M_CHECK(!failed, I2M_ERR_MEMORY, "out of memory listing the slivers");
@@ -869,7 +980,8 @@ static i2m_err_t collect_all(const i2m_refine_t *r, double bound, sliver_list_t 
 
 /* The list after a round, without a pass over the mesh: a tet no move changed has its angle
  * still, so the slivers left are the list's untouched ones (same slot generation) and the
- * tets the moves made (each slot once: a made slot is newer than the list's entries). */
+ * tets the moves made (each slot once: a made slot is newer than the list's entries); the
+ * made ones worth watching are watched, as of this round. */
 static i2m_err_t collect_after_round(i2m_refine_t *r, struct sliver_pass *S)
 {
   const i2m_dt_t *dt = r->dt;
@@ -887,20 +999,32 @@ static i2m_err_t collect_after_round(i2m_refine_t *r, struct sliver_pass *S)
     P->ntouched = 0;
   }
   /* each slot once (a bit per slot; the list is sorted below, so the order here is free) */
-  const size_t words = i2m_dt_ntets_slots(dt) / 64 + 1;
+  const size_t slots = i2m_dt_ntets_slots(dt), words = slots / 64 + 1;
   if (words > S->nseen_bits) {
     i2m_free(&S->seen_bits);
     I2M_CALL(i2m_calloc(words, sizeof *S->seen_bits, &S->seen_bits));
     S->nseen_bits = words;
   }
+  if (S->watching && slots > S->nchanged_in) {
+    I2M_CALL(i2m_realloc(slots, sizeof *S->changed_in, &S->changed_in));
+    memset(S->changed_in + S->nchanged_in, 0, (slots - S->nchanged_in) * sizeof *S->changed_in);
+    S->nchanged_in = slots;
+  }
+  const uint16_t stamp = (uint16_t)(S->round + 1); /* (rounds: 3 stages of ROUNDS at most) */
   const double cos_bound = cos(S->bound * (I2M_PI / 180.0));
   i2m_err_t err = I2M_OK;
-  for (uint32_t k = 0; k < P0->ntouched; k++) {
+  for (uint32_t k = 0; k < P0->ntouched && err == I2M_OK; k++) {
     const uint32_t t = P0->touched[k];
     const uint64_t bit = (uint64_t)1 << (t & 63);
     if (S->seen_bits[t >> 6] & bit) continue;
     S->seen_bits[t >> 6] |= bit;
-    if (err == I2M_OK && tet_kept(dt, t)) err = consider(dt, t, tet_badness(r, t, NULL), cos_bound, L);
+    if (S->watching) S->changed_in[t] = stamp;
+    if (!tet_kept(dt, t)) continue;
+    double hi, lo;
+    tet_extremes(r, t, &hi, &lo);
+    err = consider(dt, t, badness_from(S, hi, lo), cos_bound, L);
+    if (err == I2M_OK && S->watching && worth_watching(S, hi, lo))
+      err = watch_push(&S->watch, (watched_t){t, i2m_dt_meta(dt, t), stamp, hi, lo});
   }
   for (uint32_t k = 0; k < P0->ntouched; k++) S->seen_bits[P0->touched[k] >> 6] = 0;
   P0->ntouched = 0;
@@ -930,6 +1054,8 @@ static void pass_free(i2m_refine_t *r)
   i2m_free(&S->per);
   i2m_free(&S->list.a);
   i2m_free(&S->seen_bits);
+  i2m_free(&S->watch.a);
+  i2m_free(&S->changed_in);
   i2m_free(&S->first);
   i2m_free(&S->by_tile);
   i2m_free(&S->active);
@@ -958,7 +1084,7 @@ static i2m_err_t next_stage_if_done(i2m_refine_t *r, struct sliver_pass *S)
   if (S->bound >= S->final_bound) i2m_refine_slivers_caps(r);
   S->bound = S->final_bound;
   S->stage_start = S->round;
-  return collect_all(r, S->bound, &S->list, &min_all, NULL);
+  return S->watching ? list_from_watch(r, S) : collect_all(r, S->bound, &S->list, &min_all, NULL, NULL, NULL);
 }
 
 void i2m_refine_slivers_caps(i2m_refine_t *r) { r->slivers->caps = true; }
@@ -974,10 +1100,14 @@ static i2m_err_t pass_new(i2m_refine_t *r, double bound)
   S->cos_final = cos(bound * (I2M_PI / 180.0));
   S->cap_shift = S->cos_final + cos(widest_allowed(bound) * (I2M_PI / 180.0));
   S->bound = bound < FIRST_STAGE ? bound : FIRST_STAGE;
+  S->watching = !dist_tracking(r); /* (under MPI a task lists its tile's slivers itself) */
+  S->cos_watch = cos((bound + WATCH_MARGIN) * (I2M_PI / 180.0));
   S->t0 = i2m_wtime();
   i2m_err_t err = i2m_calloc((size_t)r->nworkers, sizeof *S->per, &S->per);
   for (int k = 0; err == I2M_OK && k < r->nworkers; k++) S->per[k].w = &r->workers[k];
-  if (err == I2M_OK) err = collect_all(r, bound, &S->list, &S->st.min_before, &S->st.slivers_before);
+  if (err == I2M_OK)
+    err = collect_all(r, bound, &S->list, &S->st.min_before, &S->st.slivers_before, S->watching ? &S->watch : NULL,
+                      &S->st.bands_before);
   if (err != I2M_OK) pass_free(r);
   return err;
 }
@@ -1125,7 +1255,9 @@ static i2m_err_t final_stats(i2m_refine_t *r, struct sliver_pass *S, double boun
   moves_so_far(r, S, &S->st.tried, &S->st.kept);
   S->st.inserted = 0;
   for (int k = 0; k < r->nworkers; k++) S->st.inserted += S->per[k].inserted;
-  const i2m_err_t err = collect_all(r, bound, &S->list, &S->st.min_after, &S->st.slivers_after);
+  i2m_err_t err = I2M_OK;
+  if (!(S->watching && figures_from_watch(r, bound, &S->st.min_after, &S->st.slivers_after)))
+    err = collect_all(r, bound, &S->list, &S->st.min_after, &S->st.slivers_after, NULL, NULL);
   S->st.seconds = i2m_wtime() - S->t0;
   int64_t in_place = 0, in_place_kept = 0;
   for (int k = 0; k < r->nworkers; k++) in_place += S->per[k].in_place, in_place_kept += S->per[k].in_place_kept;

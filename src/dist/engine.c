@@ -955,9 +955,7 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
   i2m_refine_get_stats(r, &st);
   E.fig.insertions = st.insertions;
   E.fig.removals = st.removals;
-  int64_t tets = 0;
-  i2m_dt_checksum(i2m_refine_dt(r), &tets);
-  E.fig.tets = tets;
+  E.fig.tets = i2m_dt_count_tets(i2m_refine_dt(r));
   E.fig.peak_rss = (double)i2m_peak_rss_bytes();
   if (err == I2M_OK) err = i2m_par_agree(par, gather_figures(par, &E.fig, rep));
   if (err == I2M_OK && o->trace) err = i2m_par_agree(par, write_trace(par, &E, o->trace));

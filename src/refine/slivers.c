@@ -109,7 +109,7 @@ struct sliver_pass {
   bool watching;
   double cos_watch;       /* cos(final_bound + WATCH_MARGIN) */
   watch_list_t watch;     /* every output tet worth a look has a valid entry (watch_valid) */
-  uint16_t *changed_in;   /* [nchanged_in] per tet slot: the round that last changed it, 0 none */
+  uint8_t *changed_in;    /* [nchanged_in] per tet slot: the round that last changed it, 0 none */
   size_t nchanged_in;
 };
 
@@ -1010,7 +1010,8 @@ static i2m_err_t collect_after_round(i2m_refine_t *r, struct sliver_pass *S)
     memset(S->changed_in + S->nchanged_in, 0, (slots - S->nchanged_in) * sizeof *S->changed_in);
     S->nchanged_in = slots;
   }
-  const uint16_t stamp = (uint16_t)(S->round + 1); /* (rounds: 3 stages of ROUNDS at most) */
+  _Static_assert(3 * ROUNDS + 1 < 256, "a round's stamp fits a byte"); /* (3 stages of ROUNDS at most) */
+  const uint8_t stamp = (uint8_t)(S->round + 1);
   const double cos_bound = cos(S->bound * (I2M_PI / 180.0));
   i2m_err_t err = I2M_OK;
   for (uint32_t k = 0; k < P0->ntouched && err == I2M_OK; k++) {

@@ -3,7 +3,7 @@
 #   sh tools/ensure-deps.sh build   what building needs (a C compiler with OpenMP, zlib, hwloc;
 #                                   MPI is used when present): never installs anything, prints
 #                                   one line naming the missing Debian packages
-#   sh tools/ensure-deps.sh [all]   what building and testing need (also Open MPI, CUnit,
+#   sh tools/ensure-deps.sh [all]   what building and testing need (also Open MPI, MPICH, CUnit,
 #                                   Python's numpy, meshio, Gmsh and VTK modules, pkg-config):
 #                                   as root on Debian/Ubuntu it installs what is missing with
 #                                   apt-get; otherwise it prints one line naming the packages
@@ -34,6 +34,8 @@ if [ "$MODE" = build ]; then
 fi
 command -v mpicc >/dev/null 2>&1 || need "libopenmpi-dev"
 command -v mpirun >/dev/null 2>&1 || need "openmpi-bin"
+# MPICH beside it, for make check-builds (Open MPI stays the default mpicc: higher priority)
+command -v mpicc.mpich >/dev/null 2>&1 && command -v mpirun.mpich >/dev/null 2>&1 || need "mpich libmpich-dev"
 command -v pgrep >/dev/null 2>&1 || need procps # (tests/scripts/test_mpi_errors.sh finds the ranks to kill)
 command -v pkg-config >/dev/null 2>&1 || need pkg-config # (the install test builds the example with it)
 have_header CUnit/CUnit.h || need libcunit1-dev

@@ -105,6 +105,12 @@ typedef struct {
   double fine_seconds;         /**< the distributed phase, wall clock */
   i2m_rank_figures_t *rank;    /**< owned: [ranks] (gathered on every rank) */
   int64_t tasks, wide_tasks, bytes, tiles_moved;
+  /* i2m_dist_balance (after the tasks, again after a sliver pass): cells moved, their bytes,
+   * the most output tets a rank held before the first and after the last, as a multiple of
+   * the mean, and the steps' wall clock */
+  int balance_calls;
+  int64_t balance_cells, balance_bytes;
+  double balance_before, balance_after, balance_seconds;
 } i2m_dist_report_t;
 
 /** The distributed refinement of r (every rank made it from the same image and parameters):
@@ -121,6 +127,14 @@ void i2m_dist_report_free(i2m_dist_report_t *rep);
  *  figures.  Collective (after i2m_dist_refine). */
 i2m_err_t i2m_dist_perturb_slivers(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_opts_t *o, double bound,
                                    i2m_sliver_stats_t *st);
+
+/** The output tets spread over the ranks (src/dist/balance.c; after the tasks, before the
+ *  pieces are first built, and after a sliver pass): whole cells move, from the most loaded
+ *  rank to a neighbouring one, until none holds more than 5% above the mean (or no cell can
+ *  move without the receiver passing the giver); the Location array and the labels across
+ *  the faces follow.  rep (may be NULL) adds up the figures.  Collective; nothing at one
+ *  rank. */
+i2m_err_t i2m_dist_balance(const i2m_par_t *par, i2m_refine_t *r, i2m_dist_report_t *rep);
 
 /** The labels across the faces between ranks (each rank tells the holder of the cell across
  *  each of its faces of another rank's the label of its tet there; the holders from the

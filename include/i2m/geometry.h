@@ -89,6 +89,24 @@ static inline bool i2m_box_holds(const double box[6], const double x[3])
   return (x[0] >= box[0]) & (x[1] >= box[1]) & (x[2] >= box[2]) & (x[0] <= box[3]) & (x[1] <= box[4]) & (x[2] <= box[5]);
 }
 
+/** r = a - b. */
+static inline void i2m_sub3(const double a[3], const double b[3], double r[3])
+{
+  r[0] = a[0] - b[0];
+  r[1] = a[1] - b[1];
+  r[2] = a[2] - b[2];
+}
+
+/** r = a x b. */
+static inline void i2m_cross3(const double a[3], const double b[3], double r[3])
+{
+  r[0] = a[1] * b[2] - a[2] * b[1];
+  r[1] = a[2] * b[0] - a[0] * b[2];
+  r[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static inline double i2m_dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
 static inline double i2m_dist2(const double a[3], const double b[3])
 {
   double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];

@@ -253,6 +253,9 @@ i2m_err_t i2m_refine_pack(i2m_refine_t *r, uint32_t id, void **buf, size_t *len)
  *  the local tets next to them become another rank's.  (Several at once: the vertices that
  *  need another local tet find it in one pass over the remote faces.) */
 i2m_err_t i2m_refine_drop(i2m_refine_t *r, const uint32_t *ids, uint32_t n);
+/** The output tets (alive, labelled) of tile id that this rank holds, into *n (its list
+ *  cleared of stale entries on the way; 0 for a tile held elsewhere). */
+i2m_err_t i2m_refine_tile_kept_tets(i2m_refine_t *r, uint32_t id, int64_t *n);
 /** A submesh arrives: joined to the local tets by matching faces on global ids.  *tile (may be
  *  NULL) gets its tile. */
 i2m_err_t i2m_refine_unpack(i2m_refine_t *r, const void *buf, size_t len, uint32_t *tile);

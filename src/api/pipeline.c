@@ -68,6 +68,7 @@ static i2m_err_t perturb_slivers(i2m_pipeline_t *p)
     const i2m_dist_opts_t d = {to, NULL, -1};
     err = i2m_dist_perturb_slivers(p->par, p->ref, &d, p->opt.sliver_angle, &p->slivers); /* (agreed on inside) */
   }
+  if (err == I2M_OK && p->distributed) err = i2m_dist_balance(p->par, p->ref, &p->dist); /* (its tasks move cells) */
   if (err != I2M_OK) return err;
   p->bands_before = p->slivers.bands_before; /* (the pass's first look at the mesh: this rank's tets) */
   i2m_par_sum_i64(p->par, p->bands_before.below, I2M_DIHEDRAL_NLOW);

@@ -947,6 +947,7 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
   E.fig.preprocess = E.t0 - t0;
   if (err == I2M_OK) err = i2m_par_agree(par, i2m_refine_dist_set_location(r, E.S.holder));
   if (err == I2M_OK) err = engine_run(&E, &to, team);
+  if (err == I2M_OK) err = i2m_dist_balance(par, r, rep); /* (before the pieces are built: they would be again) */
   const double t2 = i2m_wtime();
   if (err == I2M_OK) err = component_rule(&E, &to, team);
   i2m_debug("dist: tasks %.2f s, component rule %.2f s", t2 - E.t0, i2m_wtime() - t2);

@@ -1,6 +1,7 @@
 /* Dist layer: the task scheduler of rank 0 (see sched.h).  No MPI here. */
 #include "sched.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -342,4 +343,78 @@ uint32_t sched_wide_list(const sched_t *S, bool points, uint32_t *out)
   for (uint32_t c = 0; c < S->ncells; c++)
     if ((points ? S->wpoints[c] : S->wide[c]) > 0) out[n++] = c;
   return n;
+}
+
+static int most_loaded(const int64_t *load, int P)
+{
+  int q = 0;
+  for (int k = 1; k < P; k++)
+    if (load[k] > load[q]) q = k;
+  return q;
+}
+
+/* The face neighbours of cell c (clipped to the grid): out[] gets them, returns how many. */
+static int face_neighbours(const int32_t n[3], uint32_t c, uint32_t out[6])
+{
+  const int32_t x[3] = {(int32_t)(c % (uint32_t)n[0]), (int32_t)(c / (uint32_t)n[0] % (uint32_t)n[1]),
+                        (int32_t)(c / (uint32_t)n[0] / (uint32_t)n[1])};
+  int k = 0;
+  for (int a = 0; a < 3; a++)
+    for (int d = -1; d <= 1; d += 2) {
+      int32_t y[3] = {x[0], x[1], x[2]};
+      y[a] += d;
+      if (y[a] < 0 || y[a] >= n[a]) continue;
+      out[k++] = ((uint32_t)y[2] * (uint32_t)n[1] + (uint32_t)y[1]) * (uint32_t)n[0] + (uint32_t)y[0];
+    }
+  return k;
+}
+
+/* ---- the output tets spread over the ranks (i2m_dist_balance) ---- */
+
+uint32_t sched_balance(const int32_t n[3], int P, const int64_t *kept, int32_t *holder, sched_move_t *moves, int64_t *load)
+{
+  const uint32_t nc = (uint32_t)n[0] * (uint32_t)n[1] * (uint32_t)n[2];
+  int64_t total = 0;
+  for (int q = 0; q < P; q++) load[q] = 0;
+  for (uint32_t c = 0; c < nc; c++) {
+    load[holder[c]] += kept[c];
+    total += kept[c];
+  }
+  const double mean = (double)total / P, bound = mean * (1.0 + SCHED_BALANCE_SLACK);
+  uint32_t nm = 0;
+  bool *moved = NULL;
+  if (i2m_calloc(nc, sizeof *moved, &moved) != I2M_OK) return 0; /* (no plan: the ranks keep what they hold) */
+  while (nm < nc) {
+    const int q = most_loaded(load, P);
+    if ((double)load[q] <= bound) break;
+    int64_t best_load = INT64_MAX;
+    double best_gap = INFINITY;
+    uint32_t best_c = 0;
+    int best_r = -1;
+    for (uint32_t c = 0; c < nc; c++) {
+      if (holder[c] != q || moved[c] || kept[c] == 0) continue;
+      uint32_t nb[6];
+      const int k = face_neighbours(n, c, nb);
+      for (int i = 0; i < k; i++) {
+        const int r = holder[nb[i]];
+        if (r == q || load[r] + kept[c] >= load[q]) continue;
+        const double want = fmin((double)load[q] - mean, mean - (double)load[r]);
+        const double gap = fabs((double)kept[c] - want);
+        if (load[r] < best_load || (load[r] == best_load && gap < best_gap)) {
+          best_load = load[r];
+          best_gap = gap;
+          best_c = c;
+          best_r = r;
+        }
+      }
+    }
+    if (best_r < 0) break; /* (no cell of q touches a rank it could give to) */
+    moves[nm++] = (sched_move_t){best_c, q, best_r};
+    moved[best_c] = true;
+    holder[best_c] = best_r;
+    load[q] -= kept[best_c];
+    load[best_r] += kept[best_c];
+  }
+  i2m_free(&moved);
+  return nm;
 }

@@ -108,4 +108,25 @@ void sched_give(sched_t *S, int rank, sched_task_t t);
 /** The rank that holds the most tets of task t's block. */
 int sched_best_rank(const sched_t *S, sched_task_t t);
 
+/** A rank that holds more than this above the mean of the output tets gives cells away
+ *  (sched_balance). */
+#define SCHED_BALANCE_SLACK 0.05
+
+/** A cell that moves from one rank to another (sched_balance). */
+typedef struct {
+  uint32_t cell;
+  int from, to;
+} sched_move_t;
+
+/** The moves that spread kept[] (each cell's output tets) over P ranks, on a grid of n cells,
+ *  greedily: the most loaded rank gives the rank with the least load among those across a
+ *  face of its cells the cell next to it whose tets come closest to what both need to reach
+ *  the mean, as long as the receiver stays below the giver; each cell moves once at most;
+ *  until no rank holds more than SCHED_BALANCE_SLACK above the mean, or no such move is left.
+ *  holder[] is updated, load[] ([P]) gets each rank's tets after; moves[] (room for every
+ *  cell) gets the moves in order.  Returns their number.  The same on every rank given the
+ *  same counts. */
+uint32_t sched_balance(const int32_t n[3], int P, const int64_t *kept, int32_t *holder, sched_move_t *moves,
+                       int64_t *load);
+
 #endif

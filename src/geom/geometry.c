@@ -5,20 +5,6 @@
 
 #include <math.h>
 
-static void sub3(const double a[3], const double b[3], double r[3])
-{
-  r[0] = a[0] - b[0];
-  r[1] = a[1] - b[1];
-  r[2] = a[2] - b[2];
-}
-static void cross3(const double a[3], const double b[3], double r[3])
-{
-  r[0] = a[1] * b[2] - a[2] * b[1];
-  r[1] = a[2] * b[0] - a[0] * b[2];
-  r[2] = a[0] * b[1] - a[1] * b[0];
-}
-static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-
 /* ---- double-double arithmetic (about 106 bits) from the error-free transformations, for
  * the circumcentres of nearly flat tets, whose plain evaluation loses every digit ---- */
 typedef struct {
@@ -102,11 +88,11 @@ int i2m_tet_circumcenter_flat(const double a[3], const double b[3], const double
 double i2m_tet_signed_volume6(const double a[3], const double b[3], const double c[3], const double d[3])
 {
   double u[3], v[3], w[3], vw[3];
-  sub3(b, a, u);
-  sub3(c, a, v);
-  sub3(d, a, w);
-  cross3(v, w, vw);
-  return dot3(u, vw);
+  i2m_sub3(b, a, u);
+  i2m_sub3(c, a, v);
+  i2m_sub3(d, a, w);
+  i2m_cross3(v, w, vw);
+  return i2m_dot3(u, vw);
 }
 
 double i2m_tet_min_edge2(const double a[3], const double b[3], const double c[3], const double d[3])
@@ -137,10 +123,10 @@ void i2m_tet_dihedral_cosines(const double a[3], const double b[3], const double
   double n[4][3];
   for (int f = 0; f < 4; f++) {
     double e1[3], e2[3];
-    sub3(p[fv[f][1]], p[fv[f][0]], e1);
-    sub3(p[fv[f][2]], p[fv[f][0]], e2);
-    cross3(e1, e2, n[f]);
-    const double l = sqrt(dot3(n[f], n[f]));
+    i2m_sub3(p[fv[f][1]], p[fv[f][0]], e1);
+    i2m_sub3(p[fv[f][2]], p[fv[f][0]], e2);
+    i2m_cross3(e1, e2, n[f]);
+    const double l = sqrt(i2m_dot3(n[f], n[f]));
     if (l > 0) {
       const double inv = 1.0 / l; /* (one division, not three) */
       for (int k = 0; k < 3; k++) n[f][k] *= inv;
@@ -150,7 +136,7 @@ void i2m_tet_dihedral_cosines(const double a[3], const double b[3], const double
    * edges ab, ac, ad, bc, bd, cd <-> face pairs (2,3), (1,3), (1,2), (0,3), (0,2), (0,1) */
   static const int fp[6][2] = {{2, 3}, {1, 3}, {1, 2}, {0, 3}, {0, 2}, {0, 1}};
   for (int e = 0; e < 6; e++) {
-    double cs = -dot3(n[fp[e][0]], n[fp[e][1]]);
+    double cs = -i2m_dot3(n[fp[e][0]], n[fp[e][1]]);
     cosines[e] = cs > 1 ? 1 : cs < -1 ? -1 : cs;
   }
 }
@@ -181,23 +167,23 @@ int i2m_tri_circumcenter(const double a[3], const double b[3], const double c[3]
 {
   /* c - a = (|u|^2 v - |v|^2 u) x (u x v) / (2 |u x v|^2) */
   double u[3], v[3], uv[3], t[3], x[3];
-  sub3(b, a, u);
-  sub3(c, a, v);
-  cross3(u, v, uv);
-  double den = 2.0 * dot3(uv, uv);
+  i2m_sub3(b, a, u);
+  i2m_sub3(c, a, v);
+  i2m_cross3(u, v, uv);
+  double den = 2.0 * i2m_dot3(uv, uv);
   if (!(den > 0)) {
     cc[0] = cc[1] = cc[2] = 1e300;
     *r2 = INFINITY;
     return -1;
   }
-  double lu = dot3(u, u), lv = dot3(v, v);
+  double lu = i2m_dot3(u, u), lv = i2m_dot3(v, v);
   for (int k = 0; k < 3; k++) t[k] = lu * v[k] - lv * u[k];
-  cross3(t, uv, x);
+  i2m_cross3(t, uv, x);
   for (int k = 0; k < 3; k++) {
     x[k] /= den;
     cc[k] = a[k] + x[k];
   }
-  *r2 = dot3(x, x);
+  *r2 = i2m_dot3(x, x);
   return 0;
 }
 
@@ -207,11 +193,11 @@ double i2m_tri_min_angle(const double a[3], const double b[3], const double c[3]
   double cmax = -1.0; /* the smallest angle has the largest cosine: one acos */
   for (int i = 0; i < 3; i++) {
     double e1[3], e2[3];
-    sub3(p[(i + 1) % 3], p[i], e1);
-    sub3(p[(i + 2) % 3], p[i], e2);
-    double l = sqrt(dot3(e1, e1) * dot3(e2, e2));
+    i2m_sub3(p[(i + 1) % 3], p[i], e1);
+    i2m_sub3(p[(i + 2) % 3], p[i], e2);
+    double l = sqrt(i2m_dot3(e1, e1) * i2m_dot3(e2, e2));
     if (!(l > 0)) return 0.0;
-    double cs = dot3(e1, e2) / l;
+    double cs = i2m_dot3(e1, e2) / l;
     if (cs > cmax) cmax = cs;
   }
   return i2m_degrees_of_cosine(cmax);

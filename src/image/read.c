@@ -4,6 +4,7 @@
  * (finite positive spacing, orthonormal directions) and small header-text helpers. */
 #define _XOPEN_SOURCE 700 /* realpath */
 #include "image_impl.h"
+#include "i2m/geometry.h"
 
 #include <errno.h>
 #include <math.h>
@@ -118,11 +119,10 @@ i2m_err_t image_sibling_path(const char *path, const char *file, int allow_exter
 
 #define DEG_PER_RAD 57.29577951308232
 
-static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 static void normalise3(double a[3])
 {
-  double l = sqrt(dot3(a, a));
+  double l = sqrt(i2m_dot3(a, a));
   for (int r = 0; r < 3; r++) a[r] /= l;
 }
 
@@ -161,7 +161,7 @@ i2m_err_t image_set_geometry(i2m_image_t *img, double axis[3][3], const double o
 {
   double u[3][3];
   for (int c = 0; c < 3; c++) {
-    double len = sqrt(dot3(axis[c], axis[c]));
+    double len = sqrt(i2m_dot3(axis[c], axis[c]));
     I2M_CHECK(isfinite(len) && len > 0, I2M_ERR_INPUT,
               "%s: voxel spacing along axis %d is %g (it must be positive and finite)", img->path,
               c, len);
@@ -169,7 +169,7 @@ i2m_err_t image_set_geometry(i2m_image_t *img, double axis[3][3], const double o
     img->spacing[c] = len;
     for (int r = 0; r < 3; r++) u[c][r] = axis[c][r] / len;
   }
-  double d01 = dot3(u[0], u[1]), d02 = dot3(u[0], u[2]), d12 = dot3(u[1], u[2]);
+  double d01 = i2m_dot3(u[0], u[1]), d02 = i2m_dot3(u[0], u[2]), d12 = i2m_dot3(u[1], u[2]);
   double worst = fmax(fabs(d01), fmax(fabs(d02), fabs(d12)));
   I2M_CHECK(worst <= 1e-3, I2M_ERR_UNSUPPORTED,
             "%s: sheared voxel grids are not supported (the index axes make angles of %.4g, "
@@ -178,7 +178,7 @@ i2m_err_t image_set_geometry(i2m_image_t *img, double axis[3][3], const double o
   if (worst > 0) { /* Gram-Schmidt: an exactly orthonormal frame is left untouched */
     for (int r = 0; r < 3; r++) u[1][r] -= d01 * u[0][r];
     normalise3(u[1]);
-    double e0 = dot3(u[0], u[2]), e1 = dot3(u[1], u[2]);
+    double e0 = i2m_dot3(u[0], u[2]), e1 = i2m_dot3(u[1], u[2]);
     for (int r = 0; r < 3; r++) u[2][r] -= e0 * u[0][r] + e1 * u[1][r];
     normalise3(u[2]);
   }

@@ -104,6 +104,9 @@ void i2m_report_print(FILE *f, const i2m_report_t *r)
               k, g->preprocess, g->meshing, g->comm, g->idle, (long long)g->tasks, (long long)g->insertions, (long long)g->tets,
               (long long)g->tiles_in, (long long)g->tiles_out, (long long)g->answered_while_refining, g->peak_rss / 1048576.0);
     }
+    fprintf(f, "    balance    %lld cells moved after the tasks, %.3g MB, %.2f s: the most output tets on a rank %.2f -> %.2f times the mean\n",
+            (long long)d->balance_cells, (double)d->balance_bytes / 1048576.0, d->balance_seconds, d->balance_before,
+            d->balance_after);
   }
   fprintf(f, "  memory       peak %.1f MB, %.0f bytes per output tet\n", (double)r->peak_rss / 1048576.0,
           r->nt ? (double)r->peak_rss / (double)r->nt : 0.0);
@@ -260,10 +263,12 @@ static void json_dist(FILE *f, const i2m_report_t *r)
   const i2m_dist_report_t *d = r->dist;
   fprintf(f, "  \"dist\": {\"ranks\": %d, \"depth\": %d, \"subregions\": %d, \"deterministic\": %s, \"tasks\": %lld, "
              "\"wide_tasks\": %lld, \"submeshes_moved\": %lld, \"bytes\": %lld, \"bytes_per_tet\": %.2f, \"fine_seconds\": %.4f, "
+             "\"balance\": {\"cells\": %lld, \"bytes\": %lld, \"seconds\": %.4f, \"most_before\": %.4f, \"most_after\": %.4f}, "
              "\"per_rank\": [",
           d->ranks, d->depth, 1 << (3 * d->depth), d->deterministic ? "true" : "false", (long long)d->tasks,
           (long long)d->wide_tasks, (long long)d->tiles_moved, (long long)d->bytes, r->nt ? (double)d->bytes / (double)r->nt : 0.0,
-          d->fine_seconds);
+          d->fine_seconds, (long long)d->balance_cells, (long long)d->balance_bytes, d->balance_seconds, d->balance_before,
+          d->balance_after);
   for (int k = 0; k < d->ranks; k++) {
     const i2m_rank_figures_t *g = &d->rank[k];
     fprintf(f, "%s\n    {\"rank\": %d, \"preprocess_seconds\": %.4f, \"meshing_seconds\": %.4f, \"comm_seconds\": %.4f, "

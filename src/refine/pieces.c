@@ -300,26 +300,27 @@ static i2m_err_t describe_areas(const i2m_refine_t *r, pieces_t *P)
   return I2M_OK;
 }
 
-/* The faces between a local kept tet and another rank's (the dist layer joins parts there). */
+/* The faces between a local kept tet and another rank's (the dist layer joins parts there),
+ * from the table of those faces. */
 static i2m_err_t describe_faces(const i2m_refine_t *r, pieces_t *P)
 {
   const i2m_dt_t *dt = r->dt;
-  if (!dist_tracking(r)) return I2M_OK;
-  const uint32_t n = i2m_dt_ntets_slots(dt);
-  size_t cap = 0;
-  for (uint32_t t = 0; t < n; t++) {
+  size_t cap = 0, h = 0;
+  uint32_t face;
+  i2m_gidx_t key[3];
+  int32_t cell;
+  while (dist_next_remote_face(r, &h, &face, key, &cell)) {
+    const uint32_t t = face >> 2;
     if (!tet_kept(dt, t)) continue;
-    for (int i = 0; i < 4; i++) {
-      if (dt->tn[4 * (size_t)t + i] != I2M_DT_REMOTE) continue;
-      if (P->nfaces == cap) {
-        cap = 2 * cap + 256;
-        I2M_CALL(i2m_realloc(cap, sizeof *P->face, &P->face));
-      }
-      i2m_part_face_t *f = &P->face[P->nfaces++];
-      dist_face(r, t, i, f->key, &f->cell);
-      f->part = atomic_load_explicit(&P->par[t], memory_order_relaxed);
-      f->label = tinfo(dt, t)->label;
+    if (P->nfaces == cap) {
+      cap = 2 * cap + 256;
+      I2M_CALL(i2m_realloc(cap, sizeof *P->face, &P->face));
     }
+    i2m_part_face_t *f = &P->face[P->nfaces++];
+    memcpy(f->key, key, sizeof f->key);
+    f->cell = cell;
+    f->part = atomic_load_explicit(&P->par[t], memory_order_relaxed);
+    f->label = tinfo(dt, t)->label;
   }
   return I2M_OK;
 }

@@ -374,8 +374,10 @@ i2m_err_t dist_note_tets(i2m_refine_worker_t *w, const uint32_t *t, uint32_t n);
 i2m_err_t dist_note_vertex(i2m_refine_worker_t *w, uint32_t v);
 /** The label index of the tet across face i of t, another rank's (i2m_refine_dist_ghosts). */
 uint16_t dist_ghost_label(const i2m_refine_t *r, uint32_t t, int i);
-/** Face i of t (another rank's on the other side): its sorted global ids and the cell across. */
-void dist_face(const i2m_refine_t *r, uint32_t t, int i, i2m_gidx_t key[3], int32_t *cell);
+/** The next face of a local tet whose other side is another rank's, in the table's order
+ *  (cursor *h from 0): its 4t + i, sorted global ids and the cell across; false after the
+ *  last.  (A walk over those faces only, not over every slot.) */
+bool dist_next_remote_face(const i2m_refine_t *r, size_t *h, uint32_t *face, i2m_gidx_t key[3], int32_t *cell);
 /** The local face (4t + i) with these sorted global ids whose other side is another rank's,
  *  or I2M_DT_NONE. */
 uint32_t dist_face_at(const i2m_refine_t *r, const i2m_gidx_t key[3]);

@@ -266,6 +266,25 @@ static void tile_compact(const i2m_dt_t *dt, tile_t *tl)
   tl->ntets = tl->live_tets = n;
 }
 
+i2m_err_t i2m_refine_tile_kept_tets(i2m_refine_t *r, uint32_t id, int64_t *n)
+{
+  struct submesh *S = r->sub;
+  const i2m_dt_t *dt = r->dt;
+  tile_t *tl = &r->tiling->tile[id];
+  *n = 0;
+  if (!tl->held) return I2M_OK;
+  I2M_CALL(sub_room(S, dt));
+  tile_compact(dt, tl);
+  for (uint32_t i = 0; i < tl->ntets; i++) { /* (a tet may be listed twice: counted once) */
+    const uint32_t t = tl->tets[i].t;
+    if (S->tmark[t] != PACK_NONE) continue;
+    S->tmark[t] = 0;
+    *n += tet_kept(dt, t);
+  }
+  for (uint32_t i = 0; i < tl->ntets; i++) S->tmark[tl->tets[i].t] = PACK_NONE;
+  return I2M_OK;
+}
+
 i2m_err_t dist_note_tets(i2m_refine_worker_t *w, const uint32_t *t, uint32_t n)
 {
   if (w->nborn + n > w->cap_born) {
@@ -869,14 +888,30 @@ void i2m_refine_dist_resolve(i2m_refine_t *r, uint32_t id)
 
 size_t i2m_refine_dist_nfaces(const i2m_refine_t *r) { return r->sub ? r->sub->nrf : 0; }
 
-void i2m_refine_dist_faces(const i2m_refine_t *r, i2m_face_label_t *out)
+bool dist_next_remote_face(const i2m_refine_t *r, size_t *h, uint32_t *face, i2m_gidx_t key[3], int32_t *cell)
 {
   const struct submesh *S = r->sub;
-  size_t n = 0;
-  for (size_t h = 0; h < S->cap_rf; h++) {
-    const rface_t *f = &S->rf[h];
+  for (; S && *h < S->cap_rf; ++*h) {
+    const rface_t *f = &S->rf[*h];
     if (f->key[0] < 0) continue;
-    out[n++] = (i2m_face_label_t){{f->key[0], f->key[1], f->key[2]}, f->cell, tinfo(r->dt, f->face >> 2)->label};
+    *face = f->face;
+    memcpy(key, f->key, sizeof f->key);
+    *cell = f->cell;
+    ++*h;
+    return true;
+  }
+  return false;
+}
+
+void i2m_refine_dist_faces(const i2m_refine_t *r, i2m_face_label_t *out)
+{
+  size_t n = 0, h = 0;
+  uint32_t face;
+  i2m_face_label_t f;
+  memset(&f, 0, sizeof f); /* (its padding too: the records travel as bytes) */
+  while (dist_next_remote_face(r, &h, &face, f.key, &f.cell)) {
+    f.label = tinfo(r->dt, face >> 2)->label;
+    out[n++] = f;
   }
 }
 
@@ -905,9 +940,3 @@ uint32_t dist_face_at(const i2m_refine_t *r, const i2m_gidx_t key[3])
   return f ? f->face : I2M_DT_NONE;
 }
 
-void dist_face(const i2m_refine_t *r, uint32_t t, int i, i2m_gidx_t key[3], int32_t *cell)
-{
-  face_key(r->dt, t, i, key);
-  const rface_t *f = rf_find(r->sub, key);
-  *cell = f ? f->cell : -1;
-}

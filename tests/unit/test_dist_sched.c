@@ -900,6 +900,124 @@ static void test_best_rank_ties(void)
   sched_free(&S);
 }
 
+/* ---- sched_balance ---- */
+
+static bool face_adjacent(const int32_t n[3], uint32_t a, uint32_t b)
+{
+  int32_t x[3], y[3];
+  xyz(n, a, x);
+  xyz(n, b, y);
+  const int d = abs(x[0] - y[0]) + abs(x[1] - y[1]) + abs(x[2] - y[2]);
+  return d == 1;
+}
+
+/* One plan, checked against the model: each move legal when made (the giver the most loaded
+ * rank, the cell its own and next to the receiver's, the receiver below the giver after it),
+ * each cell once, the loads and holders as the moves leave them, and at the end the bound met
+ * or no legal move left.  Also: the same plan a second time. */
+static bool check_balance(const int32_t n[3], int P, const int64_t *kept, const int32_t *holder0)
+{
+  const uint32_t nc = (uint32_t)(n[0] * n[1] * n[2]);
+  int32_t *h = malloc(nc * sizeof *h), *h2 = malloc(nc * sizeof *h2), *model = malloc(nc * sizeof *model);
+  sched_move_t *mv = malloc(nc * sizeof *mv), *mv2 = malloc(nc * sizeof *mv2);
+  int64_t load[8], load2[8], ml[8] = {0};
+  bool *moved = calloc(nc, sizeof *moved), ok = h && h2 && model && mv && mv2 && moved;
+  if (ok) {
+    memcpy(h, holder0, nc * sizeof *h);
+    memcpy(h2, holder0, nc * sizeof *h2);
+    memcpy(model, holder0, nc * sizeof *model);
+  }
+  const uint32_t nm = ok ? sched_balance(n, P, kept, h, mv, load) : 0;
+  int64_t total = 0;
+  for (uint32_t c = 0; ok && c < nc; c++) {
+    ml[model[c]] += kept[c];
+    total += kept[c];
+  }
+  const double bound = (double)total / P * (1.0 + SCHED_BALANCE_SLACK);
+  for (uint32_t k = 0; ok && k < nm; k++) {
+    const sched_move_t m = mv[k];
+    int q = 0;
+    for (int r = 1; r < P; r++) q = ml[r] > ml[q] ? r : q;
+    bool next = false;
+    for (uint32_t c = 0; c < nc; c++) next |= model[c] == m.to && face_adjacent(n, c, m.cell);
+    ok = m.cell < nc && !moved[m.cell] && model[m.cell] == m.from && m.from == q && m.to != m.from && next &&
+         ml[m.to] + kept[m.cell] < ml[m.from] && (double)ml[q] > bound;
+    moved[m.cell] = true;
+    model[m.cell] = m.to;
+    ml[m.from] -= kept[m.cell];
+    ml[m.to] += kept[m.cell];
+  }
+  for (uint32_t c = 0; ok && c < nc; c++) ok = h[c] == model[c];
+  for (int r = 0; ok && r < P; r++) ok = load[r] == ml[r];
+  int q = 0;
+  for (int r = 1; ok && r < P; r++) q = ml[r] > ml[q] ? r : q;
+  if (ok && (double)ml[q] > bound) /* then no legal move is left */
+    for (uint32_t c = 0; c < nc; c++) {
+      if (model[c] != q || moved[c] || kept[c] == 0) continue;
+      for (uint32_t d = 0; d < nc; d++)
+        if (model[d] != q && face_adjacent(n, c, d) && ml[model[d]] + kept[c] < ml[q]) ok = false;
+    }
+  const uint32_t nm2 = ok ? sched_balance(n, P, kept, h2, mv2, load2) : 0;
+  ok = ok && nm2 == nm && memcmp(mv, mv2, nm * sizeof *mv) == 0;
+  free(h);
+  free(h2);
+  free(model);
+  free(mv);
+  free(mv2);
+  free(moved);
+  return ok;
+}
+
+static void test_balance_by_hand(void)
+{
+  const int32_t n[3] = {4, 1, 1};
+  const int64_t kept[4] = {10, 10, 10, 10};
+  int32_t h[4] = {0, 0, 0, 1};
+  sched_move_t mv[4];
+  int64_t load[2];
+  CU_ASSERT_EQUAL_FATAL(sched_balance(n, 2, kept, h, mv, load), 1);
+  CU_ASSERT(mv[0].cell == 2 && mv[0].from == 0 && mv[0].to == 1); /* the one next to rank 1 */
+  CU_ASSERT(load[0] == 20 && load[1] == 20 && h[2] == 1);
+  const int64_t even[4] = {10, 10, 10, 10};
+  int32_t h2[4] = {0, 0, 1, 1};
+  CU_ASSERT_EQUAL(sched_balance(n, 2, even, h2, mv, load), 0); /* balanced already */
+  const int64_t heavy[4] = {100, 1, 1, 1};
+  int32_t h3[4] = {0, 1, 1, 1};
+  CU_ASSERT_EQUAL(sched_balance(n, 2, heavy, h3, mv, load), 0); /* moving it would only swap the roles */
+  int32_t h4[4] = {0, 0, 0, 0}; /* another rank holds nothing next to rank 0's cells: nothing moves */
+  CU_ASSERT_EQUAL(sched_balance(n, 2, kept, h4, mv, load), 0);
+  CU_ASSERT(load[0] == 40 && load[1] == 0);
+  CU_ASSERT(check_balance(n, 2, kept, (const int32_t[4]){0, 0, 0, 1}));
+}
+
+static void test_balance_random(void)
+{
+  static const int32_t grids[][3] = {{8, 8, 8}, {6, 4, 5}, {3, 3, 3}, {2, 1, 7}};
+  uint64_t seed = 42;
+  for (size_t g = 0; g < sizeof grids / sizeof *grids; g++)
+    for (int P = 2; P <= 5; P++)
+      for (int trial = 0; trial < 20; trial++) {
+        sched_t S;
+        CU_ASSERT_FATAL(sched_init(&S, grids[g], P) == I2M_OK);
+        for (uint32_t c = 0; c < S.ncells; c++) S.tets[c] = (int64_t)below(&seed, 1000) * (below(&seed, 5) != 0);
+        sched_partition(&S);
+        int64_t *kept = malloc(S.ncells * sizeof *kept);
+        CU_ASSERT_FATAL(kept != NULL);
+        for (uint32_t c = 0; c < S.ncells; c++) { /* drift: a run of cells along the grid goes to one rank */
+          kept[c] = S.tets[c] * (int64_t)(1 + below(&seed, 3));
+          S.holder[c] = S.home[c];
+        }
+        const uint32_t from = below(&seed, S.ncells), len = below(&seed, S.ncells / 2 + 1);
+        const int32_t to = (int32_t)below(&seed, (uint32_t)P);
+        for (uint32_t c = from; c < from + len && c < S.ncells; c++) S.holder[c] = to;
+        const bool ok = check_balance(grids[g], P, kept, S.holder);
+        CU_ASSERT(ok);
+        if (!ok) fprintf(stderr, "grid %dx%dx%d, %d ranks, trial %d\n", grids[g][0], grids[g][1], grids[g][2], P, trial);
+        free(kept);
+        sched_free(&S);
+      }
+}
+
 static const test_case_t tests[] = {
     {"sched_block: blocks clipped at faces, edges and corners", test_block_clipping},
     {"sched_partition: contiguous Morton shares, balanced tets", test_partition},
@@ -911,5 +1029,7 @@ static const test_case_t tests[] = {
     {"sched_wide_list", test_wide_list},
     {"busy, wide tasks alone, blocks apart, by hand", test_busy_by_hand},
     {"sched_best_rank and its ties", test_best_rank_ties},
+    {"sched_balance by hand", test_balance_by_hand},
+    {"sched_balance on random drifts, 2-5 ranks: legal moves, the bound or no move left", test_balance_random},
 };
 TEST_MAIN("the dist layer's task scheduler", tests)

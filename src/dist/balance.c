@@ -23,14 +23,14 @@
 static i2m_err_t carry_out(const i2m_par_t *par, i2m_refine_t *r, const sched_move_t *moves, uint32_t nm, int64_t *bytes)
 {
   void **out = NULL, **in = NULL;
-  int *in_len = NULL;
+  int *len_of = NULL; /* [nm] the bytes of each move's buffer, sent or received */
   uint32_t *gone = NULL, ngone = 0;
   MPI_Request *req = NULL;
   i2m_err_t err = I2M_OK;
   *bytes = 0;
   I2M_CALL_GOTO(err, done, i2m_calloc(nm + 1, sizeof *out, &out));
   I2M_CALL_GOTO(err, done, i2m_calloc(nm + 1, sizeof *in, &in));
-  I2M_CALL_GOTO(err, done, i2m_calloc(nm + 1, sizeof *in_len, &in_len));
+  I2M_CALL_GOTO(err, done, i2m_calloc(nm + 1, sizeof *len_of, &len_of));
   I2M_CALL_GOTO(err, done, i2m_calloc(nm + 1, sizeof *gone, &gone));
   I2M_CALL_GOTO(err, done, i2m_calloc(nm + 1, sizeof *req, &req));
   size_t len = 0;
@@ -41,7 +41,7 @@ static i2m_err_t carry_out(const i2m_par_t *par, i2m_refine_t *r, const sched_mo
         err = I2M_ERROR(I2M_ERR_MEMORY, "a submesh of more than 2 GB: use a larger --depth");
       if (err == I2M_OK) {
         gone[ngone++] = moves[k].cell;
-        in_len[k] = (int)len;
+        len_of[k] = (int)len;
         *bytes += (int64_t)len;
       }
     }
@@ -51,7 +51,7 @@ done:
     int nreq = 0;
     for (uint32_t k = 0; k < nm; k++)
       if (moves[k].from == par->rank)
-        MPI_Isend(out[k], in_len[k], MPI_BYTE, moves[k].to, TAG_BALANCE, par->comm, &req[nreq++]);
+        MPI_Isend(out[k], len_of[k], MPI_BYTE, moves[k].to, TAG_BALANCE, par->comm, &req[nreq++]);
     for (uint32_t k = 0; k < nm; k++) {
       if (moves[k].to != par->rank) continue;
       MPI_Status st;
@@ -63,13 +63,13 @@ done:
         i2m_par_abort(par, 1);
       }
       MPI_Recv(in[k], count, MPI_BYTE, moves[k].from, TAG_BALANCE, par->comm, MPI_STATUS_IGNORE);
-      in_len[k] = count;
+      len_of[k] = count;
     }
     for (int k = 0; k < nreq; k++) MPI_Wait(&req[k], MPI_STATUS_IGNORE); /* (MPICH's MPI_STATUSES_IGNORE
         trips gcc's -Wstringop-overflow in MPI_Waitall) */
     err = i2m_refine_drop(r, gone, ngone);
     for (uint32_t k = 0; k < nm && err == I2M_OK; k++)
-      if (moves[k].to == par->rank) err = i2m_refine_unpack(r, in[k], (size_t)in_len[k], NULL);
+      if (moves[k].to == par->rank) err = i2m_refine_unpack(r, in[k], (size_t)len_of[k], NULL);
   }
   for (uint32_t k = 0; out && in && k < nm; k++) {
     free(out[k]);
@@ -77,7 +77,7 @@ done:
   }
   i2m_free(&out);
   i2m_free(&in);
-  i2m_free(&in_len);
+  i2m_free(&len_of);
   i2m_free(&gone);
   i2m_free(&req);
   return i2m_par_agree(par, err);

@@ -103,6 +103,9 @@ static outcome_t mesh_and_check_mode(const i2m_image_t *img, int T, const i2m_re
       double cc[3], r2;
       i2m_tet_circumcenter(m->xyz + 3 * v[0], m->xyz + 3 * v[1], m->xyz + 3 * v[2], m->xyz + 3 * v[3], cc, &r2);
       CU_ASSERT(sqrt(r2) <= p->size * (1 + 1e-9));
+      if (!(sqrt(r2) <= p->size * (1 + 1e-9))) /* (what a failure needs to be understood) */
+        fprintf(stderr, "tet %lld of %lld (label %d, %d threads): circumradius %.9g > size %.9g, centre %.6g %.6g %.6g\n",
+                (long long)t, (long long)m->nt, (int)m->tet_label[t], T, sqrt(r2), p->size, cc[0], cc[1], cc[2]);
     }
   o.nt = m->nt;
   i2m_quality_free(&q);

@@ -107,13 +107,9 @@ i2m_err_t i2m_dist_balance(const i2m_par_t *par, i2m_refine_t *r, i2m_dist_repor
     for (uint32_t c = 0; c < nc; c++) total += kept[c];
     for (int q = 0; q < P; q++) load[q] = 0;
     for (uint32_t c = 0; c < nc; c++) load[holder[c]] += kept[c];
-    int64_t most = 0;
-    for (int q = 0; q < P; q++) most = load[q] > most ? load[q] : most;
-    const double before = (double)most;
+    const double before = (double)load[sched_most_loaded(load, P)];
     const uint32_t nm = sched_balance(n, P, kept, holder, moves, load); /* (the same on every rank) */
-    most = 0;
-    for (int q = 0; q < P; q++) most = load[q] > most ? load[q] : most;
-    const double after = (double)most;
+    const double after = (double)load[sched_most_loaded(load, P)];
     int64_t bytes = 0;
     if (nm) err = carry_out(par, r, moves, nm, &bytes);
     if (err == I2M_OK && nm) err = i2m_par_agree(par, i2m_refine_dist_set_location(r, holder));

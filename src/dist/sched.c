@@ -45,12 +45,15 @@ void sched_free(sched_t *S)
   i2m_free(&S->held);
 }
 
-static void coords(const sched_t *S, uint32_t c, int32_t x[3])
+/* Cell c's coordinates on a grid of n cells. */
+static void grid_coords(const int32_t n[3], uint32_t c, int32_t x[3])
 {
-  x[0] = (int32_t)(c % (uint32_t)S->n[0]);
-  x[1] = (int32_t)(c / (uint32_t)S->n[0] % (uint32_t)S->n[1]);
-  x[2] = (int32_t)(c / (uint32_t)S->n[0] / (uint32_t)S->n[1]);
+  x[0] = (int32_t)(c % (uint32_t)n[0]);
+  x[1] = (int32_t)(c / (uint32_t)n[0] % (uint32_t)n[1]);
+  x[2] = (int32_t)(c / (uint32_t)n[0] / (uint32_t)n[1]);
 }
+
+static void coords(const sched_t *S, uint32_t c, int32_t x[3]) { grid_coords(S->n, c, x); }
 
 /* The position of cell c on a Morton (Z-order) curve: its coordinates' bits interleaved. */
 static uint64_t morton(const sched_t *S, uint32_t c)
@@ -345,7 +348,7 @@ uint32_t sched_wide_list(const sched_t *S, bool points, uint32_t *out)
   return n;
 }
 
-static int most_loaded(const int64_t *load, int P)
+int sched_most_loaded(const int64_t *load, int P)
 {
   int q = 0;
   for (int k = 1; k < P; k++)
@@ -356,8 +359,8 @@ static int most_loaded(const int64_t *load, int P)
 /* The face neighbours of cell c (clipped to the grid): out[] gets them, returns how many. */
 static int face_neighbours(const int32_t n[3], uint32_t c, uint32_t out[6])
 {
-  const int32_t x[3] = {(int32_t)(c % (uint32_t)n[0]), (int32_t)(c / (uint32_t)n[0] % (uint32_t)n[1]),
-                        (int32_t)(c / (uint32_t)n[0] / (uint32_t)n[1])};
+  int32_t x[3];
+  grid_coords(n, c, x);
   int k = 0;
   for (int a = 0; a < 3; a++)
     for (int d = -1; d <= 1; d += 2) {
@@ -385,7 +388,7 @@ uint32_t sched_balance(const int32_t n[3], int P, const int64_t *kept, int32_t *
   bool *moved = NULL;
   if (i2m_calloc(nc, sizeof *moved, &moved) != I2M_OK) return 0; /* (no plan: the ranks keep what they hold) */
   while (nm < nc) {
-    const int q = most_loaded(load, P);
+    const int q = sched_most_loaded(load, P);
     if ((double)load[q] <= bound) break;
     int64_t best_load = INT64_MAX;
     double best_gap = INFINITY;

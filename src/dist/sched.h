@@ -126,6 +126,9 @@ typedef struct {
  *  holder[] is updated, load[] ([P]) gets each rank's tets after; moves[] (room for every
  *  cell) gets the moves in order.  Returns their number.  The same on every rank given the
  *  same counts. */
+/** The rank with the most of load[0..P) (the lowest on ties). */
+int sched_most_loaded(const int64_t *load, int P);
+
 uint32_t sched_balance(const int32_t n[3], int P, const int64_t *kept, int32_t *holder, sched_move_t *moves,
                        int64_t *load);
 

@@ -266,25 +266,6 @@ static void tile_compact(const i2m_dt_t *dt, tile_t *tl)
   tl->ntets = tl->live_tets = n;
 }
 
-i2m_err_t i2m_refine_tile_kept_tets(i2m_refine_t *r, uint32_t id, int64_t *n)
-{
-  struct submesh *S = r->sub;
-  const i2m_dt_t *dt = r->dt;
-  tile_t *tl = &r->tiling->tile[id];
-  *n = 0;
-  if (!tl->held) return I2M_OK;
-  I2M_CALL(sub_room(S, dt));
-  tile_compact(dt, tl);
-  for (uint32_t i = 0; i < tl->ntets; i++) { /* (a tet may be listed twice: counted once) */
-    const uint32_t t = tl->tets[i].t;
-    if (S->tmark[t] != PACK_NONE) continue;
-    S->tmark[t] = 0;
-    *n += tet_kept(dt, t);
-  }
-  for (uint32_t i = 0; i < tl->ntets; i++) S->tmark[tl->tets[i].t] = PACK_NONE;
-  return I2M_OK;
-}
-
 i2m_err_t dist_note_tets(i2m_refine_worker_t *w, const uint32_t *t, uint32_t n)
 {
   if (w->nborn + n > w->cap_born) {
@@ -477,6 +458,22 @@ static void unnumber(struct submesh *S, const uint32_t *tets, uint32_t nt, const
 {
   for (uint32_t i = 0; i < nt; i++) S->tmark[tets[i]] = PACK_NONE;
   for (uint32_t i = 0; i < nv; i++) S->vmark[verts[i]] = PACK_NONE;
+}
+
+i2m_err_t i2m_refine_tile_kept_tets(i2m_refine_t *r, uint32_t id, int64_t *n)
+{
+  tile_t *tl = &r->tiling->tile[id];
+  uint32_t *tets = NULL, *verts = NULL, nt = 0, nv = 0;
+  *n = 0;
+  if (!tl->held) return I2M_OK;
+  I2M_CALL(sub_room(r->sub, r->dt));
+  tile_compact(r->dt, tl);
+  i2m_err_t err = number_submesh(r, tl, &tets, &nt, &verts, &nv); /* (each live tet once) */
+  for (uint32_t k = 0; k < nt && err == I2M_OK; k++) *n += tet_kept(r->dt, tets[k]);
+  unnumber(r->sub, tets, nt, verts, nv);
+  i2m_free(&tets);
+  i2m_free(&verts);
+  return err;
 }
 
 /* A tile's bad elements (live, of its own tets) as buffer indices. */

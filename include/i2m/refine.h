@@ -155,6 +155,8 @@ i2m_err_t i2m_refine_set_workers(i2m_refine_t *r, int n);
 int i2m_refine_nworkers(const i2m_refine_t *r);
 /** One step of worker k (thread safe across different k): an I2M_STEP_* value. */
 int i2m_refine_step(i2m_refine_t *r, int k);
+/** After I2M_STEP_ERROR: its error code (the message is set in the thread that made the step). */
+i2m_err_t i2m_refine_step_error(const i2m_refine_t *r, int k);
 /** After I2M_STEP_ROLLBACK: the worker index (0-based) that held the lock, or -1. */
 int i2m_refine_conflict_worker(const i2m_refine_t *r, int k);
 /** Bad elements and pending removals of worker k. */

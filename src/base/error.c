@@ -10,10 +10,13 @@ static void (*abort_hook)(void);
 
 i2m_err_t i2m_error_set(i2m_err_t code, const char *file, int line, const char *fmt, ...)
 {
+  /* (formatted apart first: a message may quote the one it replaces) */
+  char msg[sizeof error_message];
   va_list ap;
   va_start(ap, fmt);
-  vsnprintf(error_message, sizeof error_message, fmt, ap);
+  vsnprintf(msg, sizeof msg, fmt, ap);
   va_end(ap);
+  memcpy(error_message, msg, sizeof msg);
   /* Messages quote text from bad files: a control character (a newline, a terminal escape)
    * would break the one-line message or reach the user's terminal as a command. */
   for (char *c = error_message; *c; c++)

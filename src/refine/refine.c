@@ -180,7 +180,7 @@ i2m_err_t i2m_refine_run(i2m_refine_t *r)
   int s;
   while ((s = worker_step(w)) == I2M_STEP_DONE) {
   }
-  I2M_CHECK(s == I2M_STEP_IDLE, I2M_ERR_INTERNAL, "refinement failed: %s", i2m_error_message());
+  I2M_CALL(step_outcome(w, s));
   i2m_dt_ctx_flush(&w->ctx);
   w->st.seconds += i2m_wtime() - t0;
 
@@ -267,6 +267,7 @@ i2m_err_t i2m_refine_set_workers(i2m_refine_t *r, int n)
 int i2m_refine_nworkers(const i2m_refine_t *r) { return r->nworkers; }
 
 int i2m_refine_step(i2m_refine_t *r, int k) { return worker_step(&r->workers[k]); }
+i2m_err_t i2m_refine_step_error(const i2m_refine_t *r, int k) { return r->workers[k].error; }
 
 int i2m_refine_conflict_worker(const i2m_refine_t *r, int k)
 {

@@ -226,6 +226,7 @@ struct i2m_refine_worker {
   uint32_t cap_geom;
   uint32_t ncreated, cap_created;
   i2m_refine_stats_t st;
+  i2m_err_t error;      /* the code behind its last I2M_STEP_ERROR (the message is its thread's) */
   i2m_progress_t progress;
   tile_t *tile;         /* deterministic mode: the tile it works on (NULL: none, or the sequential pass) */
   uint32_t tile_id;
@@ -392,5 +393,8 @@ i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, u
 i2m_err_t worker_keep_created(i2m_refine_worker_t *w);
 /** Treats one pending removal or one bad element: an I2M_STEP_* result. */
 int worker_step(i2m_refine_worker_t *w);
+/** Where a worker ran until its lists were empty: I2M_OK for I2M_STEP_IDLE, the worker's error
+ *  for I2M_STEP_ERROR (message kept), an internal error for anything else. */
+i2m_err_t step_outcome(const i2m_refine_worker_t *w, int s);
 
 #endif

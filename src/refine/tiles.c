@@ -335,7 +335,10 @@ static i2m_err_t run_tile(i2m_refine_t *r, int k, uint32_t id, bool wide)
   bool full = false;
   if (wide ? tl->nwpts : tl->npts) {
     i2m_err_t err = insert_tile_points(w, &full);
-    if (err != I2M_OK) s = I2M_STEP_ERROR;
+    if (err != I2M_OK) {
+      s = I2M_STEP_ERROR;
+      w->error = err;
+    }
     w->tile_full |= full;
   } else {
     do {
@@ -346,9 +349,7 @@ static i2m_err_t run_tile(i2m_refine_t *r, int k, uint32_t id, bool wide)
   tiles_unbind(w);
   w->st.seconds += i2m_wtime() - t0;
   if (full && tl->grant < (1u << 16)) tl->grant *= 2; /* the tile ran out of slots: more next time */
-  I2M_CHECK(s == I2M_STEP_IDLE || (s == I2M_STEP_FULL && full), I2M_ERR_INTERNAL, "refinement failed in a tile: %s",
-            i2m_error_message());
-  return I2M_OK;
+  return s == I2M_STEP_FULL && full ? I2M_OK : step_outcome(w, s);
 }
 
 i2m_err_t i2m_refine_tile_run(i2m_refine_t *r, int k, uint32_t id) { return run_tile(r, k, id, false); }
@@ -797,7 +798,7 @@ static i2m_err_t sequential_pass(i2m_refine_t *r)
     int s;
     while ((s = worker_step(w)) == I2M_STEP_DONE) {
     }
-    I2M_CHECK(s == I2M_STEP_IDLE, I2M_ERR_INTERNAL, "refinement failed: %s", i2m_error_message());
+    I2M_CALL(step_outcome(w, s));
     g->sequential_ops++;
   }
   if (g->nseq > n0) memmove(g->seq, g->seq + n0, (g->nseq - n0) * sizeof *g->seq); /* what it sent on: next time */

@@ -118,6 +118,15 @@ i2m_err_t worker_keep_created(i2m_refine_worker_t *w)
 
 static int64_t live_tets(const i2m_refine_worker_t *w) { return w->ctx.n_created - w->ctx.n_killed; }
 
+/* @p ok, or I2M_STEP_ERROR when @p err is an error: the worker keeps its code (its message
+ * is set) for the caller of the step. */
+static int step_result(i2m_refine_worker_t *w, i2m_err_t err, int ok)
+{
+  if (err == I2M_OK) return ok;
+  w->error = err;
+  return I2M_STEP_ERROR;
+}
+
 static void pend_bottom(i2m_refine_worker_t *w, pending_t pv)
 {
   w->pend[w->npend] = w->pend[0];
@@ -136,13 +145,13 @@ static int put_back(i2m_refine_worker_t *w, int level, const bad_t *b, pending_t
   i2m_dt_unlock_all(&w->ctx);
   if (w->tile && st == I2M_DT_FULL) {
     w->tile_full = true;
-    if (b) return worker_push_entry(w, level, b) == I2M_OK ? I2M_STEP_FULL : I2M_STEP_ERROR;
+    if (b) return step_result(w, worker_push_entry(w, level, b), I2M_STEP_FULL);
     w->pend[w->npend++] = pv; /* (it was just popped: its place is free) */
     return I2M_STEP_FULL;
   }
   if (w->tile && st == I2M_DT_FROZEN) {
     w->st.deferred++;
-    return tiles_defer(w, b ? level : -1, b ? b->t : 0, b ? b->meta : 0, pv) == I2M_OK ? I2M_STEP_DONE : I2M_STEP_ERROR;
+    return step_result(w, tiles_defer(w, b ? level : -1, b ? b->t : 0, b ? b->meta : 0, pv), I2M_STEP_DONE);
   }
   if (b) badlist_requeue_bottom(&w->q[level], b);
   else pend_bottom(w, pv);
@@ -177,10 +186,8 @@ static int do_removal(i2m_refine_worker_t *w, pending_t pv)
   if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL || st == I2M_DT_FROZEN) return put_back(w, -1, NULL, pv, st);
   if (st != I2M_DT_OK) {
     i2m_dt_unlock_all(&w->ctx);
-    if (st == I2M_DT_FAILED) {
-      I2M_ERROR(I2M_ERR_INTERNAL, "vertex removal failed to re-triangulate a star");
-      return I2M_STEP_ERROR;
-    }
+    if (st == I2M_DT_FAILED)
+      return step_result(w, I2M_ERROR(I2M_ERR_INTERNAL, "vertex removal failed to re-triangulate a star"), I2M_STEP_DONE);
     w->st.failed++;
     return I2M_STEP_DONE;
   }
@@ -190,7 +197,7 @@ static int do_removal(i2m_refine_worker_t *w, pending_t pv)
   i2m_err_t err = worker_keep_created(w);
   if (err == I2M_OK) err = worker_process_created(w, w->created, w->ncreated);
   i2m_dt_unlock_all(&w->ctx);
-  return err == I2M_OK ? I2M_STEP_DONE : I2M_STEP_ERROR;
+  return step_result(w, err, I2M_STEP_DONE);
 }
 
 static int cmp_pending(const void *x, const void *y)
@@ -284,7 +291,7 @@ int worker_step(i2m_refine_worker_t *w)
     if (skip == 0 && a.level > level) { /* its list comes later: wait there */
       i2m_err_t err = worker_push_entry(w, a.level, &b);
       i2m_dt_unlock_all(&w->ctx);
-      return err == I2M_OK ? I2M_STEP_DONE : I2M_STEP_ERROR;
+      return step_result(w, err, I2M_STEP_DONE);
     }
     i2m_dt_status_t st = insert_action(w, &a, &v);
     if (st == I2M_DT_ROLLBACK || st == I2M_DT_FULL || st == I2M_DT_FROZEN) return put_back(w, level, &b, (pending_t){0, 0}, st);
@@ -301,7 +308,14 @@ int worker_step(i2m_refine_worker_t *w)
   }
   i2m_err_t err = after_insertion(w, &a, &b, v);
   i2m_dt_unlock_all(&w->ctx);
-  if (err != I2M_OK) return I2M_STEP_ERROR;
+  if (err != I2M_OK) return step_result(w, err, I2M_STEP_DONE);
   if ((w->st.insertions & 1023) == 0 && w->ctx.owner == 1) i2m_progress_update(&w->progress, live_tets(w) * w->r->nworkers);
   return I2M_STEP_DONE;
+}
+
+i2m_err_t step_outcome(const i2m_refine_worker_t *w, int s)
+{
+  if (s == I2M_STEP_ERROR) return w->error;
+  I2M_CHECK(s == I2M_STEP_IDLE, I2M_ERR_INTERNAL, "refinement stopped with step result %d", s);
+  return I2M_OK;
 }

@@ -198,7 +198,7 @@ static void team_loop(team_t *tm, int k)
     } else if (s == I2M_STEP_IDLE) {
       go_idle(tm, k);
     } else {
-      team_fail(tm, I2M_ERR_INTERNAL);
+      team_fail(tm, i2m_refine_step_error(r, k));
       break;
     }
   }
@@ -246,7 +246,7 @@ static i2m_err_t warm_up(i2m_refine_t *r, int T)
   while (i2m_refine_backlog(r, 0) < want && (s = i2m_refine_step(r, 0)) == I2M_STEP_DONE) {
   }
   if (s == I2M_STEP_FULL) I2M_CALL(i2m_refine_grow(r));
-  I2M_CHECK(s != I2M_STEP_ERROR, I2M_ERR_INTERNAL, "refinement failed: %s", i2m_error_message());
+  if (s == I2M_STEP_ERROR) return i2m_refine_step_error(r, 0);
   return i2m_refine_spread(r);
 }
 

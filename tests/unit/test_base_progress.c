@@ -1,4 +1,4 @@
-/* Base layer: progress lines.  i2m_progress_add from the threads of an OpenMP loop counts
+/* Base layer: progress lines and error messages.  i2m_progress_add from the threads of an OpenMP loop counts
  * every item exactly once and prints whole lines ("phase: N of TOTAL ..., about S s left"),
  * one at a time; --quiet (I2M_LOG_QUIET) silences them.  stderr is redirected to a file
  * for the checks; the interval is shortened so that the test does not wait 2 s. */
@@ -87,8 +87,21 @@ static void test_progress_quiet(void)
   free(text);
 }
 
+/* An error that quotes the one before it (a caller adds context to its callee's message)
+ * gets both, whole: the message once came out as its own prefix and a torn tail. */
+static void test_error_quotes_previous(void)
+{
+  i2m_err_t code = I2M_ERROR(I2M_ERR_MEMORY, "out of memory growing an array to %d bytes", 24600);
+  CU_ASSERT_EQUAL(code, I2M_ERR_MEMORY);
+  I2M_ERROR(I2M_ERR_INTERNAL, "refinement failed in a tile: %s", i2m_error_message());
+  CU_ASSERT_STRING_EQUAL(i2m_error_message(), "refinement failed in a tile: out of memory growing an array to 24600 bytes");
+  I2M_ERROR(I2M_ERR_INPUT, "bad\nline\033[2J");
+  CU_ASSERT_STRING_EQUAL(i2m_error_message(), "bad?line?[2J"); /* one line, no terminal commands */
+}
+
 static const test_case_t cases[] = {
     {"progress from the threads of a loop", test_progress_add_threads},
     {"--quiet silences progress", test_progress_quiet},
+    {"an error message that quotes the previous one", test_error_quotes_previous},
 };
-TEST_MAIN("progress lines", cases)
+TEST_MAIN("progress lines and error messages", cases)

@@ -299,6 +299,10 @@ static inline uint32_t i2m_dt_meta(const i2m_dt_t *dt, uint32_t t)
 {
   return atomic_load_explicit(&dt->meta[t], memory_order_relaxed);
 }
+/** meta[t] without the mark: what a record of the tet keeps and later compares.  Another
+ *  thread's cavity search marks the live tets it visits for a moment (and unmarks them if it
+ *  rolls back): a record compared with the marked word would take a live tet for gone. */
+static inline uint32_t i2m_dt_stamp(const i2m_dt_t *dt, uint32_t t) { return i2m_dt_meta(dt, t) & ~I2M_TM_MARK; }
 static inline bool i2m_dt_alive(const i2m_dt_t *dt, uint32_t t) { return !(i2m_dt_meta(dt, t) & I2M_TM_DEAD); }
 static inline uint32_t i2m_dt_nverts_slots(const i2m_dt_t *dt)
 {

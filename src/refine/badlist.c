@@ -15,13 +15,13 @@ static i2m_err_t set_capacity(badlist_t *q, size_t cap)
   return I2M_OK;
 }
 
-/* Drops the entries of tets that are gone (their generation moved on).  The mark bit is
- * masked: another thread may mark a live tet for a moment, its entry must stay. */
+/* Drops the entries of tets that are gone (their generation moved on; the stamp leaves out
+ * the mark that another thread's search may have set on a live tet for a moment). */
 static void compact(badlist_t *q, const i2m_dt_t *dt)
 {
   size_t k = 0;
   for (size_t i = 0; i < q->n; i++) {
-    if ((i2m_dt_meta(dt, q->e[i][0]) & ~I2M_TM_MARK) != q->e[i][1]) continue;
+    if (i2m_dt_stamp(dt, q->e[i][0]) != q->e[i][1]) continue;
     memcpy(q->e[k], q->e[i], sizeof *q->e);
     if (q->wide) memcpy(q->v[k], q->v[i], sizeof *q->v);
     k++;
@@ -58,7 +58,7 @@ bool badlist_pop_live(badlist_t *q, const i2m_dt_t *dt, bad_t *b)
   b->meta = q->e[i][1];
   /* a generation moved on proves the tet gone, and its slot may be another's by now: the tet
    * is not read at all (no lock needed for that) */
-  if (i2m_dt_meta(dt, b->t) != b->meta) return false;
+  if (i2m_dt_stamp(dt, b->t) != b->meta) return false;
   memcpy(b->v, q->wide ? q->v[i] : dt->tv + 4 * (size_t)b->t, sizeof b->v);
   return true;
 }

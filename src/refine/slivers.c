@@ -435,7 +435,7 @@ static int changed_ok(perturb_t *P, double floor_cos, bool angles_seen, uint32_t
   for (uint32_t k = 0; k < P->nchanged && !angles_seen; k++) {
     const uint32_t t = P->changed[k];
     if (!i2m_dt_alive(dt, t)) continue; /* (a removal's tet the insertion took again) */
-    if (k < cached && i2m_dt_meta(dt, t) != P->hole_meta[k]) continue; /* (its slot, a new tet's: checked below) */
+    if (k < cached && i2m_dt_stamp(dt, t) != P->hole_meta[k]) continue; /* (its slot, a new tet's: checked below) */
     if ((k < cached ? P->hole_cos[k] : tet_badness(P->w->r, t, NULL)) < floor_cos) continue;
     if (k >= unlabelled) label_tet(P->w->r, t);
     if (tinfo(dt, t)->label != 0) return 0;
@@ -571,7 +571,7 @@ static int mover_take_out(perturb_t *P, mover_t *M)
   }
   for (uint32_t k = 0; k < M->nremoved; k++) {
     P->hole_cos[k] = tet_badness(P->w->r, P->changed[k], NULL);
-    P->hole_meta[k] = i2m_dt_meta(P->w->r->dt, P->changed[k]);
+    P->hole_meta[k] = i2m_dt_stamp(P->w->r->dt, P->changed[k]);
   }
   return MOVE_KEPT;
 }
@@ -589,7 +589,7 @@ static bool trial_accept(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
    * mark, so its meta differs) */
   for (uint32_t k = 0; k < P->nchanged; k++) {
     const uint32_t t = P->changed[k];
-    if (i2m_dt_meta(dt, t) != P->hole_meta[k] || P->hole_cos[k] < P->trial_floor) continue;
+    if (i2m_dt_stamp(dt, t) != P->hole_meta[k] || P->hole_cos[k] < P->trial_floor) continue;
     tet_points(dt, t, x);
     if (centre_label(r, x) != 0) return false;
   }
@@ -770,7 +770,7 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
 {
   i2m_refine_worker_t *w = P->w;
   i2m_dt_t *dt = w->r->dt;
-  if (i2m_dt_meta(dt, s->t) != s->meta) return MOVE_UNDONE; /* changed by an earlier move */
+  if (i2m_dt_stamp(dt, s->t) != s->meta) return MOVE_UNDONE; /* changed by an earlier move */
   const int inserted = try_insertion(P, s);
   if (inserted == MOVE_KEPT || inserted == MOVE_ERROR) return inserted;
   uint32_t verts[4];
@@ -831,7 +831,7 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
     const uint32_t t = tet_of_vertices(P, verts, moved);
     if (t != I2M_DT_NONE) {
       s->t = t;
-      s->meta = i2m_dt_meta(dt, t);
+      s->meta = i2m_dt_stamp(dt, t);
     }
   }
   return result;
@@ -844,7 +844,7 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
 static i2m_err_t consider(const i2m_dt_t *dt, uint32_t t, double c, double cos_bound, sliver_list_t *L)
 {
   if (!(c > cos_bound)) return I2M_OK;
-  sliver_t s = {t, i2m_dt_meta(dt, t), i2m_degrees_of_cosine(c), {0}};
+  sliver_t s = {t, i2m_dt_stamp(dt, t), i2m_degrees_of_cosine(c), {0}};
   uint32_t v[4];
   memcpy(v, dt->tv + 4 * (size_t)t, sizeof v);
   for (int i = 0; i < 4; i++) s.gid[i] = i2m_dt_gid(dt, v[i]);
@@ -877,7 +877,7 @@ static bool watch_valid(const i2m_refine_t *r, const watched_t *e)
 {
   const struct sliver_pass *S = r->slivers;
   const uint32_t last = e->t < S->nchanged_in ? S->changed_in[e->t] : 0;
-  return last == e->round && i2m_dt_meta(r->dt, e->t) == e->meta && tet_kept(r->dt, e->t);
+  return last == e->round && i2m_dt_stamp(r->dt, e->t) == e->meta && tet_kept(r->dt, e->t);
 }
 
 /* A stage's list from the watched tets (the stale entries dropped): the list a pass over the
@@ -957,7 +957,7 @@ static i2m_err_t collect_all(const i2m_refine_t *r, double bound, sliver_list_t 
       below += chi > cos_bound;
       failed |= consider(dt, t, badness_from(S, chi, clo), cos_bound, &part[c]) != I2M_OK;
       if (W && worth_watching(S, chi, clo))
-        failed |= watch_push(&wpart[c], (watched_t){t, i2m_dt_meta(dt, t), 0, chi, clo}) != I2M_OK;
+        failed |= watch_push(&wpart[c], (watched_t){t, i2m_dt_stamp(dt, t), 0, chi, clo}) != I2M_OK;
     }
   }
   if (nbelow) *nbelow = below;
@@ -988,7 +988,7 @@ static i2m_err_t collect_after_round(i2m_refine_t *r, struct sliver_pass *S)
   sliver_list_t *L = &S->list;
   size_t n = 0;
   for (size_t k = 0; k < L->n; k++)
-    if (i2m_dt_meta(dt, L->a[k].t) == L->a[k].meta) L->a[n++] = L->a[k];
+    if (i2m_dt_stamp(dt, L->a[k].t) == L->a[k].meta) L->a[n++] = L->a[k];
   L->n = n;
   perturb_t *P0 = &S->per[0];
   for (int k = 1; k < r->nworkers; k++) { /* every thread's touched tets into worker 0's */
@@ -1025,7 +1025,7 @@ static i2m_err_t collect_after_round(i2m_refine_t *r, struct sliver_pass *S)
     tet_extremes(r, t, &hi, &lo);
     err = consider(dt, t, badness_from(S, hi, lo), cos_bound, L);
     if (err == I2M_OK && S->watching && worth_watching(S, hi, lo))
-      err = watch_push(&S->watch, (watched_t){t, i2m_dt_meta(dt, t), stamp, hi, lo});
+      err = watch_push(&S->watch, (watched_t){t, i2m_dt_stamp(dt, t), stamp, hi, lo});
   }
   for (uint32_t k = 0; k < P0->ntouched; k++) S->seen_bits[P0->touched[k] >> 6] = 0;
   P0->ntouched = 0;
@@ -1328,7 +1328,7 @@ static i2m_err_t tile_slivers(const i2m_refine_t *r, uint32_t id, sliver_list_t 
   L->n = 0;
   for (uint32_t i = 0; i < tl->ntets; i++) { /* (stale entries: their meta moved on) */
     const uint32_t t = tl->tets[i].t;
-    if (i2m_dt_meta(dt, t) != tl->tets[i].meta || !tet_kept(dt, t)) continue;
+    if (i2m_dt_stamp(dt, t) != tl->tets[i].meta || !tet_kept(dt, t)) continue;
     I2M_CALL(consider(dt, t, tet_badness(r, t, NULL), cos_bound, L));
   }
   if (L->n > 1) qsort(L->a, L->n, sizeof *L->a, cmp_sliver);

@@ -262,7 +262,7 @@ static void tile_compact(const i2m_dt_t *dt, tile_t *tl)
 {
   uint32_t n = 0;
   for (uint32_t i = 0; i < tl->ntets; i++)
-    if (i2m_dt_meta(dt, tl->tets[i].t) == tl->tets[i].meta) tl->tets[n++] = tl->tets[i];
+    if (i2m_dt_stamp(dt, tl->tets[i].t) == tl->tets[i].meta) tl->tets[n++] = tl->tets[i];
   tl->ntets = tl->live_tets = n;
 }
 
@@ -273,7 +273,7 @@ i2m_err_t dist_note_tets(i2m_refine_worker_t *w, const uint32_t *t, uint32_t n)
     I2M_CALL(i2m_realloc(c, sizeof *w->born, &w->born));
     w->cap_born = c;
   }
-  for (uint32_t k = 0; k < n; k++) w->born[w->nborn++] = (tetref_t){t[k], i2m_dt_meta(w->r->dt, t[k])};
+  for (uint32_t k = 0; k < n; k++) w->born[w->nborn++] = (tetref_t){t[k], i2m_dt_stamp(w->r->dt, t[k])};
   return I2M_OK;
 }
 
@@ -298,7 +298,7 @@ i2m_err_t i2m_refine_dist_merge(i2m_refine_t *r)
     i2m_refine_worker_t *w = &r->workers[k];
     for (uint32_t i = 0; i < w->nborn; i++) {
       const tetref_t e = w->born[i];
-      if (i2m_dt_meta(dt, e.t) != e.meta) continue; /* (most die within the task) */
+      if (i2m_dt_stamp(dt, e.t) != e.meta) continue; /* (most die within the task) */
       tile_t *tl = &g->tile[tiles_tile_of_tet(r, e.t)];
       I2M_CALL(tile_file(tl, e.t, e.meta));
       if (tl->ntets > 2 * tl->live_tets + 1024) tile_compact(dt, tl);
@@ -342,7 +342,7 @@ i2m_err_t i2m_refine_dist_begin(i2m_refine_t *r, bool hold_all)
   for (uint32_t id = 0; id < r->tiling->ntiles; id++) r->tiling->tile[id].held = hold_all;
   for (uint32_t t = 0; t < nt && err == I2M_OK; t++) { /* holding none: the virtual box's tets go */
     if (!i2m_dt_alive(dt, t)) continue;
-    err = hold_all ? tile_file(&r->tiling->tile[tiles_tile_of_tet(r, t)], t, i2m_dt_meta(dt, t)) : i2m_dt_give_tet(dt, t);
+    err = hold_all ? tile_file(&r->tiling->tile[tiles_tile_of_tet(r, t)], t, i2m_dt_stamp(dt, t)) : i2m_dt_give_tet(dt, t);
   }
   for (uint32_t id = 0; id < r->tiling->ntiles; id++) r->tiling->tile[id].live_tets = r->tiling->tile[id].ntets;
   if (err != I2M_OK) sub_free(&r->sub);
@@ -439,7 +439,7 @@ static i2m_err_t number_submesh(const i2m_refine_t *r, const tile_t *tl, uint32_
   I2M_CALL(i2m_malloc(4 * (size_t)tl->ntets + 1, sizeof **verts, verts));
   for (uint32_t i = 0; i < tl->ntets; i++) {
     const tetref_t e = tl->tets[i];
-    if (i2m_dt_meta(dt, e.t) != e.meta || S->tmark[e.t] != PACK_NONE) continue;
+    if (i2m_dt_stamp(dt, e.t) != e.meta || S->tmark[e.t] != PACK_NONE) continue;
     S->tmark[e.t] = nt;
     (*tets)[nt++] = e.t;
     const uint32_t *v = dt->tv + 4 * (size_t)e.t;
@@ -482,7 +482,7 @@ static uint32_t pack_queue(const i2m_refine_t *r, const badlist_t *q, bytes_t *B
   uint32_t n = 0;
   for (size_t i = 0; i < q->n; i++) {
     const uint32_t t = q->e[i][0];
-    if (i2m_dt_meta(r->dt, t) != q->e[i][1] || r->sub->tmark[t] == PACK_NONE) continue;
+    if (i2m_dt_stamp(r->dt, t) != q->e[i][1] || r->sub->tmark[t] == PACK_NONE) continue;
     bytes_put(B, &r->sub->tmark[t], sizeof(uint32_t));
     n++;
   }
@@ -794,7 +794,7 @@ static i2m_err_t unpack_tets(i2m_refine_t *r, tile_t *tl, const pack_tet_t *pt, 
         }
       }
     }
-    I2M_CALL(tile_file(tl, t, i2m_dt_meta(dt, t)));
+    I2M_CALL(tile_file(tl, t, i2m_dt_stamp(dt, t)));
   }
   tl->live_tets = tl->ntets;
   return I2M_OK;
@@ -805,7 +805,7 @@ static i2m_err_t unpack_queue(i2m_refine_t *r, badlist_t *q, reader_t *R, uint32
   for (uint32_t i = 0; i < n; i++) {
     const uint32_t *k = take(R, sizeof *k);
     I2M_CHECK(k && *k < nt, I2M_ERR_INTERNAL, "bad submesh (queue)");
-    bad_t b = {tslot[*k], i2m_dt_meta(r->dt, tslot[*k]), {0, 0, 0, 0}};
+    bad_t b = {tslot[*k], i2m_dt_stamp(r->dt, tslot[*k]), {0, 0, 0, 0}};
     I2M_CALL(badlist_push(q, r->dt, &b));
   }
   return I2M_OK;

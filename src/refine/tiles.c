@@ -264,7 +264,7 @@ static uint32_t tile_start_near(const i2m_refine_worker_t *w, const double x[3])
   double dmin = INFINITY;
   for (uint32_t i = 0; i < tl->ntets; i++) {
     const uint32_t t = tl->tets[i].t;
-    if (i2m_dt_meta(dt, t) != tl->tets[i].meta) continue;
+    if (i2m_dt_stamp(dt, t) != tl->tets[i].meta) continue;
     double c[3];
     i2m_dt_centroid(dt, t, c);
     const double d = i2m_dist2(c, x);
@@ -490,7 +490,7 @@ static i2m_err_t adopt_worker_elements(i2m_refine_t *r)
       for (size_t i = 0; i < w->q[l].n; i++) {
         bad_t b;
         badlist_get(&w->q[l], r->dt, i, &b);
-        if (i2m_dt_meta(r->dt, b.t) != b.meta) continue;
+        if (i2m_dt_stamp(r->dt, b.t) != b.meta) continue;
         I2M_CALL(place(r, (handoff_t){tiles_tile_of_tet(r, b.t), TILE_NONE, 0, l, b.t, b.meta, {0, 0}, HAND_QUEUE}));
       }
       w->q[l].n = 0;
@@ -570,7 +570,7 @@ i2m_err_t i2m_refine_tiling_collect(i2m_refine_t *r)
   i2m_err_t err = I2M_OK;
   for (uint32_t t = 0; t < nt && err == I2M_OK; t++)
     if (g->level[t] >= 0)
-      err = place(r, (handoff_t){tiles_tile_of_tet(r, t), TILE_NONE, 0, g->level[t], t, i2m_dt_meta(r->dt, t), {0, 0}, HAND_QUEUE});
+      err = place(r, (handoff_t){tiles_tile_of_tet(r, t), TILE_NONE, 0, g->level[t], t, i2m_dt_stamp(r->dt, t), {0, 0}, HAND_QUEUE});
   i2m_free(&g->level);
   return err;
 }
@@ -606,7 +606,7 @@ static void compact_lists(const i2m_dt_t *dt, badlist_t *q)
   for (int l = 0; l < NLEVELS; l++) {
     size_t n = 0;
     for (size_t i = 0; i < q[l].n; i++)
-      if (i2m_dt_meta(dt, q[l].e[i][0]) == q[l].e[i][1]) {
+      if (i2m_dt_stamp(dt, q[l].e[i][0]) == q[l].e[i][1]) {
         q[l].e[n][0] = q[l].e[i][0];
         q[l].e[n][1] = q[l].e[i][1];
         n++;
@@ -772,7 +772,7 @@ i2m_err_t i2m_refine_tiling_merge(i2m_refine_t *r)
   g->nactive = 0;
   for (size_t i = 0; i < n; i++) {
     handoff_t h = g->merge[i];
-    if (h.level >= 0 && i2m_dt_meta(r->dt, h.t) != h.meta) continue; /* gone meanwhile */
+    if (h.level >= 0 && i2m_dt_stamp(r->dt, h.t) != h.meta) continue; /* gone meanwhile */
     I2M_CALL(place(r, h));
   }
   return I2M_OK;
@@ -788,7 +788,7 @@ static i2m_err_t sequential_pass(i2m_refine_t *r)
   for (size_t i = 0; i < n0; i++) { /* each element once, with what follows from it */
     handoff_t h = g->seq[i];
     if (h.level >= 0) {
-      if (i2m_dt_meta(r->dt, h.t) != h.meta) continue;
+      if (i2m_dt_stamp(r->dt, h.t) != h.meta) continue;
       bad_t b = {h.t, h.meta, {0, 0, 0, 0}};
       memcpy(b.v, r->dt->tv + 4 * (size_t)h.t, sizeof b.v);
       I2M_CALL(worker_push_entry(w, h.level, &b));
@@ -926,7 +926,7 @@ i2m_err_t i2m_refine_tiling_check_stuck(i2m_refine_t *r)
     if (h->level < 0) /* (a removal whose vertex is not on this rank: PACK_NONE) */
       n += h->pv.v < i2m_dt_nverts_slots(r->dt) && r->dt->vkind[h->pv.v] == I2M_VK_FREE &&
            i2m_dt_gid(r->dt, h->pv.v) == h->pv.gid;
-    else n += i2m_dt_meta(r->dt, h->t) == h->meta && stuck_matters(r, h->t);
+    else n += i2m_dt_stamp(r->dt, h->t) == h->meta && stuck_matters(r, h->t);
   }
   I2M_CHECK(!g || g->stuck_points == 0, I2M_ERR_INTERNAL,
             "%lld points of the component rule could not be inserted inside any subregion's zone (not even a wide one): "

@@ -45,12 +45,12 @@ static i2m_err_t push_classified(i2m_refine_worker_t *w, uint32_t t, const tet_g
   if (level < 0) return I2M_OK;
   if (w->r->tiling) {
     bool taken;
-    I2M_CALL(tiles_route(w, level, t, i2m_dt_meta(w->r->dt, t), &taken));
+    I2M_CALL(tiles_route(w, level, t, i2m_dt_stamp(w->r->dt, t), &taken));
     if (taken) return I2M_OK;
   }
   bad_t b;
   b.t = t;
-  b.meta = i2m_dt_meta(w->r->dt, t);
+  b.meta = i2m_dt_stamp(w->r->dt, t);
   memcpy(b.v, w->r->dt->tv + 4 * (size_t)t, sizeof b.v);
   return worker_push_entry(w, level, &b);
 }
@@ -258,7 +258,7 @@ static i2m_err_t after_insertion(i2m_refine_worker_t *w, const action_t *a, cons
   I2M_CALL(worker_process_created(w, w->created, w->ncreated));
   /* the point may have gone in elsewhere (a neighbour's ball, a walk): a tet that survives
    * keeps whatever else is wrong with it, so it goes back to the lists */
-  if (i2m_dt_meta(dt, b->t) == b->meta) I2M_CALL(worker_push(w, b->t));
+  if (i2m_dt_stamp(dt, b->t) == b->meta) I2M_CALL(worker_push(w, b->t));
   if (a->kind == I2M_VK_SURFACE) I2M_CALL(queue_r7(w, i2m_dt_xyz(dt, v)));
   return I2M_OK;
 }
@@ -273,7 +273,7 @@ int worker_step(i2m_refine_worker_t *w)
   bad_t b;
   if (!badlist_pop_live(&w->q[level], dt, &b)) return I2M_STEP_DONE; /* gone (most popped entries are) */
   if (!i2m_dt_lock_tet(&w->ctx, b.v)) return put_back(w, level, &b, (pending_t){0, 0}, tile_status(w, I2M_DT_ROLLBACK));
-  if (i2m_dt_meta(dt, b.t) != b.meta) { /* stale: the tet is gone */
+  if (i2m_dt_stamp(dt, b.t) != b.meta) { /* stale: the tet is gone */
     i2m_dt_unlock_all(&w->ctx);
     return I2M_STEP_DONE;
   }
@@ -301,7 +301,7 @@ int worker_step(i2m_refine_worker_t *w)
     skip |= a.rule >= 2 && a.rule <= 4 ? (1u << 2 | 1u << 3 | 1u << 4) : 1u << a.rule;
     /* the failed attempt released every lock: take the tet's again */
     if (!i2m_dt_lock_tet(&w->ctx, b.v)) return put_back(w, level, &b, (pending_t){0, 0}, tile_status(w, I2M_DT_ROLLBACK));
-    if (i2m_dt_meta(dt, b.t) != b.meta) {
+    if (i2m_dt_stamp(dt, b.t) != b.meta) {
       i2m_dt_unlock_all(&w->ctx);
       return I2M_STEP_DONE;
     }

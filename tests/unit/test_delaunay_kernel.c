@@ -468,11 +468,14 @@ static void undo_case(double *xyz, size_t n, size_t nvertices, uint64_t seed)
 }
 
 /* The accept hook: refused, nothing changed (every record as it was); accepted, the new tets
- * are exactly p joined to the faces the hook was shown, in their order. */
+ * are exactly p joined to the faces the hook was shown, in their order.  While the cavity is
+ * marked (another thread could be reading), each of its tets keeps the stamp it had before:
+ * a record of a live tet is never taken for gone because of a search that may roll back. */
 typedef struct {
   bool accept;
   uint32_t n, abc[4096][3];
-  uint32_t ncav, marked; /* cavity tets when asked, and those the hook saw marked */
+  uint32_t ncav, marked, stamped; /* cavity tets when asked, those the hook saw marked, and those whose stamp was as before */
+  const tet_records_t *before;
 } hook_seen_t;
 
 static bool record_hook(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
@@ -483,7 +486,12 @@ static bool record_hook(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
   for (uint32_t k = 0; k < h->n; k++) i2m_dt_cavity_face(ctx, k, h->abc[k]);
   h->ncav = ctx->ncav;
   h->marked = 0;
-  for (uint32_t k = 0; k < ctx->ncav; k++) h->marked += (i2m_dt_meta(ctx->dt, ctx->cav[k]) & I2M_TM_MARK) != 0;
+  h->stamped = 0;
+  for (uint32_t k = 0; k < ctx->ncav; k++) {
+    const uint32_t t = ctx->cav[k];
+    h->marked += (i2m_dt_meta(ctx->dt, t) & I2M_TM_MARK) != 0;
+    h->stamped += t < h->before->n && i2m_dt_stamp(ctx->dt, t) == h->before->meta[t];
+  }
   return h->accept;
 }
 
@@ -508,12 +516,14 @@ static void test_accept_hook(void)
     for (int a = 0; a < 3; a++) p[a] = xyz[3 * i + a] + 0.3 * (2 * urand() - 1);
     tet_records_t before;
     records_take(dt, &before);
+    h->before = &before;
     h->accept = m % 2 == 0;
     uint32_t v;
     const i2m_dt_status_t st = i2m_dt_insert_walk(&ctx, p, (int64_t)(n + 100 + (size_t)m), I2M_VK_FREE, dt->vtet[vid[i]], &v);
     i2m_dt_unlock_all(&ctx);
     CU_ASSERT(h->n > 0 && h->n < 4096);
     CU_ASSERT(h->ncav > 0 && h->marked == h->ncav); /* (the cavity is marked when the hook is asked) */
+    CU_ASSERT_EQUAL(h->stamped, h->ncav);
     if (!h->accept) {
       CU_ASSERT_EQUAL(st, I2M_DT_REFUSED);
       CU_ASSERT(records_same(dt, &before)); /* (marks cleared too) */

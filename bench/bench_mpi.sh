@@ -3,7 +3,8 @@
 # (cores, ranks, threads, elements, time, elements/s, speedup against 1x1, efficiency) and,
 # from the best run of each MPI configuration, its Fig. 7 breakdown averaged over the ranks
 # (pre-processing, meshing, communication, idle, as fractions of each rank's time) and the
-# bytes moved per output tet.  Writes bench/results/bench_mpi_<date>.txt and .json.
+# bytes moved per output tet, and where the communication time goes (waiting for data, packing,
+# joining, dropping, merging).  Writes bench/results/bench_mpi_<date>.txt and .json.
 #
 #   bench/bench_mpi.sh [-i IMAGE] [-o "I2M OPTIONS"] [-r REPEATS] [-c "CONFIGS"]
 #
@@ -142,6 +143,11 @@ for c in configs:
             for k in fr:
                 fr[k] += parts[k] / total / len(d["per_rank"])
         row["breakdown"] = fr
+        cp = {k: 0.0 for k in ("wait_data", "pack", "unpack", "drop", "merge")}
+        for g in d["per_rank"]:
+            for k in cp:
+                cp[k] += g["comm_parts_seconds"][k] / len(d["per_rank"])
+        row["comm_parts_seconds"] = cp
         row["bytes_per_tet"] = d["bytes"] / row["elements"] if row["elements"] else 0.0
         row["depth"], row["tasks"], row["submeshes_moved"] = d["depth"], d["tasks"], d["submeshes_moved"]
     rows.append(row)
@@ -171,6 +177,14 @@ for w in rows:
             w["depth"], w["tasks"]))
     else:
         lines.append("  %-7s   (plain process: no MPI breakdown)" % w["config"])
+lines += ["", "Communication work of the best run, seconds per rank (mean over ranks; packing also while",
+          "the rank's threads refine):",
+          "  config   waiting for data   packing  joining  dropping  merging", "  " + "-" * 64]
+for w in rows:
+    if "comm_parts_seconds" in w:
+        c = w["comm_parts_seconds"]
+        lines.append("  %-7s %18.2f %9.2f %8.2f %9.2f %8.2f" % (w["config"], c["wait_data"], c["pack"], c["unpack"],
+                                                            c["drop"], c["merge"]))
 text = "\n".join(lines) + "\n"
 print(text, end="")
 open(base + ".txt", "w").write(text)

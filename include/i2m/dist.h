@@ -89,6 +89,11 @@ typedef struct {
   double meshing;         /**< its worker threads refining (s) */
   double comm;            /**< fetching submeshes, packing and unpacking them, asking for tasks (s) */
   double idle;            /**< waiting for a task: nothing could run (s) */
+  /** The master's seconds in each kind of communication work: waiting for the submeshes a
+   *  task needs, packing submeshes for others (also while its threads refine: that time is not
+   *  in comm), joining those that came, dropping those that left, and merging what a task made
+   *  into the tiles' lists.  Where the communication figure goes, to drive it down. */
+  double wait_data, pack, unpack, drop, merge;
   int64_t tasks, wide_tasks;
   int64_t tiles_in, tiles_out;  /**< submeshes received and sent */
   int64_t bytes_in, bytes_out;

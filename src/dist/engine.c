@@ -172,7 +172,10 @@ static void enter(engine_t *E, wstate_t ws)
   switch (E->ws) {
   case W_IDLE:
   case W_ASKED: E->fig.idle += dt; break;
-  case W_GATHER: E->fig.comm += dt; break;
+  case W_GATHER:
+    E->fig.comm += dt;
+    E->fig.wait_data += dt;
+    break;
   case W_RUNNING: E->fig.meshing += dt; break;
   default: break;
   }
@@ -214,8 +217,10 @@ static void request_tasks(engine_t *E)
 /* The cells sent away leave the local mesh (no job runs). */
 static void apply_drops(engine_t *E)
 {
+  const double t = i2m_wtime();
   check(E, i2m_refine_drop(E->r, E->drops, E->ndrops));
   E->ndrops = 0;
+  E->fig.drop += i2m_wtime() - t;
 }
 
 /* A cell's figures for the scheduler (work, wide work, tets, bridge points): its bad elements,
@@ -277,7 +282,9 @@ static void on_datareq(engine_t *E, const int64_t *m, int n, int source)
     if (!i2m_refine_holds(E->r, cell)) fail(E, "asked for a cell this rank does not hold");
     void *buf = NULL;
     size_t len = 0;
+    const double t_pack = i2m_wtime();
     check(E, i2m_refine_pack(E->r, cell, &buf, &len));
+    E->fig.pack += i2m_wtime() - t_pack;
     post(E, source, TAG_DATA, buf, len, MPI_BYTE);
     E->fig.tiles_out++;
     E->fig.bytes_out += (int64_t)len;
@@ -321,11 +328,13 @@ static void start_batch(engine_t *E)
 {
   const double t = clock_in();
   apply_drops(E);
+  const double t_unpack = i2m_wtime();
   for (uint32_t i = 0; i < E->ninbox; i++) {
     check(E, i2m_refine_unpack(E->r, E->inbox[i].buf, E->inbox[i].len, NULL));
     free(E->inbox[i].buf);
   }
   E->ninbox = 0;
+  E->fig.unpack += i2m_wtime() - t_unpack;
   bool wide = false;
   for (uint32_t k = 0; k < E->nbatch; k++) {
     E->tiles[k] = E->batch[k].cell;
@@ -356,6 +365,7 @@ static void finish_batch(engine_t *E)
   const double t = clock_in();
   check(E, i2m_refine_tiling_merge(E->r));
   check(E, i2m_refine_dist_merge(E->r));
+  E->fig.merge += i2m_wtime() - t;
   apply_drops(E);
   note_peak(E);
   uint32_t *cells = NULL;

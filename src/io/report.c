@@ -272,10 +272,12 @@ static void json_dist(FILE *f, const i2m_report_t *r)
   for (int k = 0; k < d->ranks; k++) {
     const i2m_rank_figures_t *g = &d->rank[k];
     fprintf(f, "%s\n    {\"rank\": %d, \"preprocess_seconds\": %.4f, \"meshing_seconds\": %.4f, \"comm_seconds\": %.4f, "
-               "\"idle_seconds\": %.4f, \"tasks\": %lld, \"wide_tasks\": %lld, \"submeshes_in\": %lld, \"submeshes_out\": %lld, "
+               "\"idle_seconds\": %.4f, \"comm_parts_seconds\": {\"wait_data\": %.4f, \"pack\": %.4f, \"unpack\": %.4f, "
+               "\"drop\": %.4f, \"merge\": %.4f}, \"tasks\": %lld, \"wide_tasks\": %lld, \"submeshes_in\": %lld, \"submeshes_out\": %lld, "
                "\"bytes_in\": %lld, \"bytes_out\": %lld, \"answered_while_refining\": %lld, \"insertions\": %lld, "
                "\"removals\": %lld, \"tets\": %lld, \"peak_tets\": %lld, \"peak_rss_bytes\": %.0f}",
-            k ? "," : "", k, g->preprocess, g->meshing, g->comm, g->idle, (long long)g->tasks, (long long)g->wide_tasks,
+            k ? "," : "", k, g->preprocess, g->meshing, g->comm, g->idle, g->wait_data, g->pack, g->unpack, g->drop, g->merge,
+            (long long)g->tasks, (long long)g->wide_tasks,
             (long long)g->tiles_in, (long long)g->tiles_out, (long long)g->bytes_in, (long long)g->bytes_out,
             (long long)g->answered_while_refining, (long long)g->insertions, (long long)g->removals, (long long)g->tets,
             (long long)g->peak_tets, g->peak_rss);

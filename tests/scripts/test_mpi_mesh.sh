@@ -56,6 +56,14 @@ if len(ranks_seen) != ranks: bad.append("%d ranks in the report" % len(ranks_see
 for g in ranks_seen:
     if g["tasks"] <= 0 or g["insertions"] <= 0:
         bad.append("rank %d ran %d tasks, %d insertions" % (g["rank"], g["tasks"], g["insertions"]))
+    # where the communication time went: a rank that joined submeshes spent time joining them,
+    # one that packed some spent time packing, and the parts inside comm do not exceed it
+    c = g["comm_parts_seconds"]
+    if (g["submeshes_in"] > 0 and c["unpack"] <= 0) or (g["submeshes_out"] > 0 and c["pack"] <= 0):
+        bad.append("rank %d: submeshes in %d, out %d, but joining %.4f s, packing %.4f s" % (
+            g["rank"], g["submeshes_in"], g["submeshes_out"], c["unpack"], c["pack"]))
+    if c["wait_data"] + c["unpack"] + c["merge"] > g["comm_seconds"] + 1e-3:
+        bad.append("rank %d: its communication parts exceed its communication time" % g["rank"])
 ins = sum(g["insertions"] for g in ranks_seen)
 within("insertions", ins, rref["refinement"]["insertions"], 0.10)
 if ranks > 1 and sum(g["answered_while_refining"] for g in ranks_seen) == 0:

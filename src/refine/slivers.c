@@ -585,11 +585,11 @@ static bool trial_accept(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
   const i2m_refine_t *r = P->w->r;
   const i2m_dt_t *dt = r->dt;
   const double *x[4];
-  /* the removal's tets that stay (the list holds only them yet; a cavity tet carries the
-   * mark, so its meta differs) */
+  /* the removal's tets that stay (the list holds only them yet; a tet of this insertion's
+   * cavity carries the mark, so its meta word differs from the stamp recorded) */
   for (uint32_t k = 0; k < P->nchanged; k++) {
     const uint32_t t = P->changed[k];
-    if (i2m_dt_stamp(dt, t) != P->hole_meta[k] || P->hole_cos[k] < P->trial_floor) continue;
+    if (i2m_dt_meta(dt, t) != P->hole_meta[k] || P->hole_cos[k] < P->trial_floor) continue;
     tet_points(dt, t, x);
     if (centre_label(r, x) != 0) return false;
   }

@@ -1,22 +1,20 @@
 #!/bin/sh
-# Runs every CUnit test program in $1 (built for configuration $2); fails if any fails.
+# Runs every CUnit test program in $1 (built for configuration $2), a few at a time
+# (tests/run_parallel.sh: I2M_TEST_JOBS); fails if any fails.
 set -u
 dir=$1; cfg=$2
-fail=0; n=0
-export I2M_DATA="${I2M_DATA:-$(cd "$(dirname "$0")/.." && pwd)/../shared/data}"
+here=$(cd "$(dirname "$0")" && pwd)
+export I2M_DATA="${I2M_DATA:-$here/../../shared/data}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1}"
-for t in "$dir"/test_*; do
+# the longest first (a free slot takes the next one), then the others
+set --
+for t in "$dir"/test_delaunay_kernel "$dir"/test_dist_sched "$dir"/test_geom_predicates "$dir"/test_image_read "$dir"/test_*; do
   [ -x "$t" ] || continue
-  n=$((n+1))
-  log=$(mktemp)
-  start=$(date +%s)
-  if "$t" >"$log" 2>&1; then
-    echo "  PASS  [$cfg] $(basename "$t") ($(( $(date +%s) - start )) s)"
-  else
-    echo "  FAIL  [$cfg] $(basename "$t")"; tail -n 40 "$log"; fail=1
-  fi
-  rm -f "$log"
+  case " $* " in *" $t "*) continue ;; esac
+  set -- "$@" "$t"
 done
-echo "unit tests [$cfg]: $n programs, $( [ $fail = 0 ] && echo all passed || echo FAILURES)"
+fail=0
+sh "$here/run_parallel.sh" "[$cfg] " 0 "$@" || fail=1
+echo "unit tests [$cfg]: $# programs, $( [ $fail = 0 ] && echo all passed || echo FAILURES)"
 exit $fail

@@ -8,7 +8,8 @@
  *
  * Per tet, meta[t] packs (generation << 3) | frozen << 2 | mark << 1 | dead.  The generation
  * grows each time the slot is killed, so a (tet, generation) record kept in a work list is
- * recognisably stale once the tet is gone.  Dead slots are reused.
+ * recognisably stale once the tet is gone (records keep i2m_dt_stamp: the word without the
+ * mark, which a search in another thread may set for a moment).  Dead slots are reused.
  *
  * Degeneracies are decided by symbolic perturbation keyed on each vertex's global id, stored
  * bit-for-bit in the 4th coordinate slot (xyzw[4v+3]) so that coordinates and id share a

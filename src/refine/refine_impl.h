@@ -393,6 +393,9 @@ i2m_err_t worker_process_created(i2m_refine_worker_t *w, const uint32_t *newt, u
 i2m_err_t worker_keep_created(i2m_refine_worker_t *w);
 /** Treats one pending removal or one bad element: an I2M_STEP_* result. */
 int worker_step(i2m_refine_worker_t *w);
+/** @p ok, or I2M_STEP_ERROR when @p err is an error: the worker keeps its code (its message is
+ *  set) for the caller of the step. */
+int step_result(i2m_refine_worker_t *w, i2m_err_t err, int ok);
 /** Where a worker ran until its lists were empty: I2M_OK for I2M_STEP_IDLE, the worker's error
  *  for I2M_STEP_ERROR (message kept), an internal error for anything else. */
 i2m_err_t step_outcome(const i2m_refine_worker_t *w, int s);

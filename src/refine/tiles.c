@@ -334,11 +334,7 @@ static i2m_err_t run_tile(i2m_refine_t *r, int k, uint32_t id, bool wide)
   int s = I2M_STEP_IDLE;
   bool full = false;
   if (wide ? tl->nwpts : tl->npts) {
-    i2m_err_t err = insert_tile_points(w, &full);
-    if (err != I2M_OK) {
-      s = I2M_STEP_ERROR;
-      w->error = err;
-    }
+    s = step_result(w, insert_tile_points(w, &full), I2M_STEP_IDLE);
     w->tile_full |= full;
   } else {
     do {

@@ -118,9 +118,7 @@ i2m_err_t worker_keep_created(i2m_refine_worker_t *w)
 
 static int64_t live_tets(const i2m_refine_worker_t *w) { return w->ctx.n_created - w->ctx.n_killed; }
 
-/* @p ok, or I2M_STEP_ERROR when @p err is an error: the worker keeps its code (its message
- * is set) for the caller of the step. */
-static int step_result(i2m_refine_worker_t *w, i2m_err_t err, int ok)
+int step_result(i2m_refine_worker_t *w, i2m_err_t err, int ok)
 {
   if (err == I2M_OK) return ok;
   w->error = err;

@@ -19,17 +19,17 @@ fi
 start=$(date +%s)
 out=$(mktemp -d)
 if build/tsan/bin/i2m "$DATA/spine_verse009.nii.gz" -o "$out/spine.vtu" --delta 2 --threads 4 --sliver-angle 5 --quiet >"$out/log" 2>&1 &&
-   bin/i2m-check "$out/spine.vtu" --max-ratio 2 --min-facet-angle 30 >/dev/null; then
+   bin/i2m-check "$out/spine.vtu" --max-ratio 2 --min-facet-angle 30 >"$out/check" 2>&1; then
   echo "  PASS  [tsan] i2m on spine_verse009, 4 threads, sliver perturbation ($(( $(date +%s) - start )) s)"
 else
-  echo "  FAIL  [tsan] i2m on spine_verse009, 4 threads, sliver perturbation"; tail -n 40 "$out/log"; fail=1
+  echo "  FAIL  [tsan] i2m on spine_verse009, 4 threads, sliver perturbation"; tail -n 40 "$out/log"; grep -E "VIOLATED|result" "$out/check"; fail=1
 fi
 start=$(date +%s)
 if build/tsan/bin/i2m "$DATA/spine_verse009.nii.gz" -o "$out/spine_d.vtu" --delta 2 --threads 4 --deterministic --quiet >"$out/log" 2>&1 &&
-   bin/i2m-check "$out/spine_d.vtu" --max-ratio 2 --min-facet-angle 30 >/dev/null; then
+   bin/i2m-check "$out/spine_d.vtu" --max-ratio 2 --min-facet-angle 30 >"$out/check" 2>&1; then
   echo "  PASS  [tsan] i2m on spine_verse009, 4 threads, deterministic mode ($(( $(date +%s) - start )) s)"
 else
-  echo "  FAIL  [tsan] i2m on spine_verse009, 4 threads, deterministic mode"; tail -n 40 "$out/log"; fail=1
+  echo "  FAIL  [tsan] i2m on spine_verse009, 4 threads, deterministic mode"; tail -n 40 "$out/log"; grep -E "VIOLATED|result" "$out/check"; fail=1
 fi
 rm -rf "$out"
 exit $fail

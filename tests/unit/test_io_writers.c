@@ -812,6 +812,18 @@ static void test_quality_regular(void)
   CU_ASSERT_DOUBLE_EQUAL(q.max_ratio, sqrt(6.0) / 4.0, 1e-12);
   CU_ASSERT_DOUBLE_EQUAL(q.min_planar_angle, 60.0, 1e-9);
   CU_ASSERT_EQUAL(q.planar_below_30, 0);
+  /* Bounds met to within rounding: every angle is 60 and the ratio sqrt(6)/4 to a few ulps,
+   * so those bounds are met exactly at the figure, and missed just beyond it. */
+  CU_ASSERT_FATAL(ck_quality(&c, &topo, sqrt(6.0) / 4.0, 60.0, &q) == I2M_OK);
+  CU_ASSERT_EQUAL(q.ratio_above_bound, 0);
+  CU_ASSERT_EQUAL(q.planar_below_bound, 0);
+  CU_ASSERT_FATAL(ck_quality(&c, &topo, sqrt(6.0) / 4.0 * (1 - 1e-9), 60.0 + 1e-9, &q) == I2M_OK);
+  CU_ASSERT_EQUAL(q.ratio_above_bound, 1);
+  CU_ASSERT_EQUAL(q.planar_below_bound, 4);
+  CU_ASSERT(ck_meets_min(29.999999999999996, 30.0)); /* (a facet of the spine, kept at 30) */
+  CU_ASSERT(!ck_meets_min(29.9999999, 30.0));
+  CU_ASSERT(!ck_meets_min(NAN, 30.0) && !ck_meets_max(NAN, 2.0));
+  CU_ASSERT(ck_meets_max(2.0000000000000004, 2.0) && !ck_meets_max(2.000001, 2.0));
   ck_topo_free(&topo);
 }
 

@@ -21,6 +21,15 @@
 
 #define CK_PI 3.14159265358979323846
 
+/* A bound is met to within rounding.  The mesher tests a bound in its own frame (world
+ * coordinates minus a shift) with products of squared lengths; the checker measures the
+ * figure again in world coordinates with sqrt and acos, a few ulps away.  A facet the mesher
+ * kept at exactly 30 degrees reads 29.999999999999996 here (seen on the spine), so a figure
+ * within CK_BOUND_SLACK (relative) of its bound meets it.  NaN meets no bound. */
+#define CK_BOUND_SLACK 1e-12
+static inline int ck_meets_min(double v, double bound) { return v >= bound - fabs(bound) * CK_BOUND_SLACK; }
+static inline int ck_meets_max(double v, double bound) { return v <= bound + fabs(bound) * CK_BOUND_SLACK; }
+
 /* ---- the mesh as read from the file ---- */
 /* ---- progress lines of the long phases (progress.c) ---- */
 typedef struct {

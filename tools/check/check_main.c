@@ -183,10 +183,10 @@ static void thresholds(ck_result_t *r)
   if (!isnan(r->max_ratio) && q->ratio_above_bound > 0)
     violation(r, "max-ratio: %.0f tetrahedra have a radius-edge ratio above %g (max %.4g)",
               (double)q->ratio_above_bound, r->max_ratio, q->max_ratio);
-  if (!isnan(r->min_dihedral) && !(q->min_dihedral >= r->min_dihedral)) /* (NaN fails) */
+  if (!isnan(r->min_dihedral) && !ck_meets_min(q->min_dihedral, r->min_dihedral)) /* (NaN fails) */
     violation(r, "min-dihedral: the smallest dihedral angle is %.4g deg (bound %g deg; %.0f tets below 15 deg)",
               q->min_dihedral, r->min_dihedral, (double)q->dihedral_below[2]);
-  if (!isnan(r->max_dihedral) && !(q->max_dihedral <= r->max_dihedral))
+  if (!isnan(r->max_dihedral) && !ck_meets_max(q->max_dihedral, r->max_dihedral))
     violation(r, "max-dihedral: the largest dihedral angle is %.4g deg (bound %g deg; %.0f tets above 160 deg)",
               q->max_dihedral, r->max_dihedral, (double)q->dihedral_above[0]);
   if (!isnan(r->min_facet_angle)) {

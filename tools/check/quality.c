@@ -90,8 +90,8 @@ static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
       if (ang[e] < lo) lo = ang[e];
       if (ang[e] > hi) hi = ang[e];
     }
-    for (int k = 0; k < 4; k++) q->dihedral_below[k] += !(lo >= below[k]); /* (NaN counts as below) */
-    for (int k = 0; k < 2; k++) q->dihedral_above[k] += !(hi <= above[k]);
+    for (int k = 0; k < 4; k++) q->dihedral_below[k] += !ck_meets_min(lo, below[k]); /* (NaN counts as below) */
+    for (int k = 0; k < 2; k++) q->dihedral_above[k] += !ck_meets_max(hi, above[k]);
     if (lo < q->min_dihedral || q->min_dihedral_tet < 0) {
       q->min_dihedral = lo;
       q->min_dihedral_tet = t;
@@ -105,8 +105,8 @@ static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
       q->max_ratio = ratio[t];
       q->max_ratio_tet = t;
     }
-    if (!(ratio[t] <= q->ratio_bound)) q->ratio_above_bound++; /* (a NaN figure fails every bound) */
-    if (!(ratio[t] <= 2.0)) q->ratio_above_2++;
+    if (!ck_meets_max(ratio[t], q->ratio_bound)) q->ratio_above_bound++; /* (a NaN figure fails every bound) */
+    if (!ck_meets_max(ratio[t], 2.0)) q->ratio_above_2++;
     if (isfinite(ratio[t])) {
       sum += ratio[t];
       nfin++;
@@ -142,8 +142,8 @@ i2m_err_t ck_quality(const ck_mesh_t *m, const ck_topo_t *topo, double ratio_bou
       q->min_planar_angle = a;
       q->min_planar_tri = i;
     }
-    q->planar_below_30 += !(a >= 30.0);
-    q->planar_below_bound += !(a >= facet_bound);
+    q->planar_below_30 += !ck_meets_min(a, 30.0);
+    q->planar_below_bound += !ck_meets_min(a, facet_bound);
   }
   return I2M_OK;
 }

@@ -491,6 +491,10 @@ static void on_request(engine_t *E, int q)
   if (sched_busy(&E->S)) {
     E->S.waiting[q] = true;
     post_i64(E, q, TAG_WAIT, NULL, 0);
+    bool idle = true; /* (a stall whose fetch q may not make: another waiting rank may) */
+    for (int r = 0; r < E->par->size; r++) idle &= E->S.inflight[r] == 0;
+    for (int r = 0; r < E->par->size && idle; r++)
+      if (r != q && E->S.waiting[r] && try_give(E, r)) break;
   } else {
     stop_rank(E, q);
   }
@@ -960,6 +964,7 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
   if (err == I2M_OK) err = i2m_dist_balance(par, r, rep); /* (before the pieces are built: they would be again) */
   const double t2 = i2m_wtime();
   if (err == I2M_OK) err = component_rule(&E, &to, team);
+  if (err == I2M_OK) err = i2m_dist_balance(par, r, rep); /* (the rule's tasks may have moved cells; none moved: the pieces stay) */
   i2m_debug("dist: tasks %.2f s, component rule %.2f s", t2 - E.t0, i2m_wtime() - t2);
   rep->fine_seconds = i2m_par_max(par, i2m_wtime() - E.t0);
   i2m_refine_stats_t st;

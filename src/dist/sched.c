@@ -181,15 +181,32 @@ static bool best_place(const sched_t *S, int rank, sched_task_t t, const int64_t
   return b == rank || S->waiting[b] || S->done[b] || (double)held[b] * S->nranks > (double)total * SCHED_HOLD_SHARE;
 }
 
-uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
+/* What a rank that fetches data may come to hold: not much more than its share, so that memory
+ * stays spread (the data follows the work, but not all of it to the fastest rank). */
+static int64_t hold_cap(const sched_t *S, int64_t total)
 {
-  const int64_t total = held_tets(S), held = S->held[rank];
-  /* a rank that fetches data may not come to hold much more than its share: memory stays
-   * spread (the data follows the work, but not all of it to the fastest rank) */
-  int64_t cap = S->nranks > 1 ? (int64_t)((double)total * SCHED_HOLD_SHARE / S->nranks) : INT64_MAX;
-  bool stalled = true; /* (nothing in flight, every other rank waiting: none would ever be served) */
-  for (int q = 0; q < S->nranks; q++) stalled &= S->inflight[q] == 0 && (q == rank || S->waiting[q] || S->done[q]);
-  if (stalled) cap = INT64_MAX;
+  return S->nranks > 1 ? (int64_t)((double)total * SCHED_HOLD_SHARE / S->nranks) : INT64_MAX;
+}
+
+/* Is task t's work worth fetching m tets for?  Not when SCHED_MOVE_WORTH times its bad
+ * elements are fewer: the task waits for a rank that holds more of its block, or for a stall. */
+static bool worth_moving(const sched_t *S, sched_task_t t, int64_t m)
+{
+  const int64_t work = t.wide ? S->wide[t.cell] : S->work[t.cell];
+  return (double)work * SCHED_MOVE_WORTH >= (double)m;
+}
+
+/* May `rank` fetch m tets for task t, besides the memory cap (see sched_pick)? */
+static bool may_fetch(const sched_t *S, int rank, sched_task_t t, int64_t m, int64_t total)
+{
+  return best_place(S, rank, t, S->held, total) && worth_moving(S, t, m);
+}
+
+/* The tasks for `rank` (see sched_pick) when it may hold at most cap tets after a fetch, and,
+ * when stalled, may fetch for any task. */
+static uint32_t pick_tasks(sched_t *S, int rank, uint32_t max, sched_task_t *out, int64_t total, int64_t cap, bool stalled)
+{
+  const int64_t held = S->held[rank];
   uint32_t k = 0;
   while (k < max) {
     sched_task_t best = {0, false};
@@ -201,7 +218,7 @@ uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
       const int h = S->home[c] == rank;
       const int64_t m = to_move(S, rank, t);
       if (m > 0 && held + m > cap) continue;
-      if (m > 0 && !stalled && !best_place(S, rank, t, S->held, total)) continue;
+      if (m > 0 && !stalled && !may_fetch(S, rank, t, m, total)) continue;
       if (m < best_move || (m == best_move && (h > best_home || (h == best_home && S->work[c] > best_work)))) {
         best = t;
         best_home = h;
@@ -214,7 +231,7 @@ uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
         const sched_task_t t = {c, true};
         if (!sched_runnable(S, t)) continue;
         const int64_t m = to_move(S, rank, t);
-        if (m > 0 && (held + m > cap || (!stalled && !best_place(S, rank, t, S->held, total)))) continue;
+        if (m > 0 && (held + m > cap || (!stalled && !may_fetch(S, rank, t, m, total)))) continue;
         sched_give(S, rank, t);
         out[0] = t;
         return 1;
@@ -224,6 +241,36 @@ uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
     out[k++] = best;
   }
   return k;
+}
+
+bool sched_other_could_run(sched_t *S, int rank)
+{
+  const int64_t total = held_tets(S), cap = hold_cap(S, total);
+  for (int q = 0; q < S->nranks; q++) {
+    if (q == rank || !S->waiting[q]) continue;
+    for (uint32_t c = 0; c < S->ncells; c++)
+      for (int w = 0; w < 2; w++) {
+        const sched_task_t t = {c, w != 0};
+        if (!sched_runnable(S, t)) continue;
+        const int64_t m = to_move(S, q, t);
+        if (m == 0 || S->held[q] + m <= cap) return true;
+      }
+  }
+  return false;
+}
+
+uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
+{
+  const int64_t total = held_tets(S);
+  const int64_t cap = hold_cap(S, total);
+  bool stalled = true; /* (nothing in flight, every other rank waiting: none would ever be served) */
+  for (int q = 0; q < S->nranks; q++) stalled &= S->inflight[q] == 0 && (q == rank || S->waiting[q] || S->done[q]);
+  if (!stalled) return pick_tasks(S, rank, max, out, total, cap, false);
+  /* a stall: any task may fetch, within the cap while a waiting rank could run one within
+   * its own (it is served next: the run stays spread over the ranks), else beyond */
+  const uint32_t n = pick_tasks(S, rank, max, out, total, cap, true);
+  if (n || sched_other_could_run(S, rank)) return n;
+  return pick_tasks(S, rank, max, out, total, INT64_MAX, true);
 }
 
 void sched_feedback(sched_t *S, int rank, const sched_task_t *tasks, uint32_t ntasks, const sched_cell_t *cells,

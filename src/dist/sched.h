@@ -23,6 +23,14 @@
  *  share (1 / ranks) of the tets (then it takes only tasks whose data it holds). */
 #define SCHED_HOLD_SHARE 1.3
 
+/** A rank fetches data for a task only when the task's bad elements times this reach the tets
+ *  it fetches (unless the run would stall otherwise).  A bad element costs about 4 insertions
+ *  (the knee: 1.73 M insertions from 456 k bad elements at the start), each ~14 us, and a tet
+ *  moved ~0.9 us of packing, sending, joining and dropping: break-even near 60.  On the knee
+ *  at 2 ranks, 58% of the tets fetched went to tasks that fetched over 1000 per bad element
+ *  (about 9 bad elements, 90 k tets); 30 left one rank idle for a third of the run. */
+#define SCHED_MOVE_WORTH 60.0
+
 /** A task: a cell (wide: its wide task, a block of 5^3 cells). */
 typedef struct {
   uint32_t cell;
@@ -73,12 +81,19 @@ bool sched_runnable(const sched_t *S, sched_task_t t);
 /** Up to max tasks for `rank` (asynchronous mode): cells with work whose blocks are free and
  *  do not overlap each other: cells of its share first, those whose block it holds most of
  *  first (then the busiest); then others' (the data follows the work, while the rank holds
- *  less than SCHED_HOLD_SHARE times its share of the tets, and only when no busy rank holds
- *  more of the block, unless that one holds more than SCHED_HOLD_SHARE times its share: it
- *  will ask again).  Their blocks are
+ *  less than SCHED_HOLD_SHARE times its share of the tets, when the work is worth the tets
+ *  fetched (SCHED_MOVE_WORTH), and only when no busy rank holds more of the block, unless
+ *  that one holds more than SCHED_HOLD_SHARE times its share: it will ask again; when every
+ *  other rank waits with nothing in flight, only the first bound holds, and only while
+ *  sched_other_could_run: then this rank gets nothing and the waiting ones are served).
+ *  Their blocks are
  *  locked and now belong to the rank.  Returns their number (0: nothing can run now).  A wide
  *  task comes alone. */
 uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out);
+
+/** Could a waiting rank other than `rank` run a task now, fetching no more than
+ *  SCHED_HOLD_SHARE times its share of the tets? */
+bool sched_other_could_run(sched_t *S, int rank);
 
 /** The feedback of a rank's tasks: their blocks unlocked, the cells' figures updated. */
 void sched_feedback(sched_t *S, int rank, const sched_task_t *tasks, uint32_t ntasks, const sched_cell_t *cells,

@@ -15,6 +15,7 @@
  * overlapping; bridge points first; then the wide pass) are simulated the same way.  Also:
  * the blocks' clipping at the grid's faces and corners, the Morton partition (contiguous
  * shares, every rank some cells, tets balanced), the wide list. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -422,17 +423,41 @@ static int model_best_rank(const sim_t *m, const int32_t *holder, sched_task_t t
   return best;
 }
 
+/* Could rank q run a task, fetching within the cap? */
+static bool model_rank_could_run(const sim_t *m, const int32_t *holder, int q, int64_t cap)
+{
+  int64_t held = 0;
+  for (uint32_t c = 0; c < m->S.ncells; c++)
+    if (holder[c] == q) held += m->S.tets[c] + 1;
+  for (uint32_t c = 0; c < m->S.ncells; c++)
+    for (int w = 0; w < 2; w++) {
+      const sched_task_t t = {c, w != 0};
+      if (!model_runnable(m, t)) continue;
+      const int64_t f = fetch_cost(m, holder, q, t);
+      if (f == 0 || held + f <= cap) return true;
+    }
+  return false;
+}
+
+/* Could `rank` or another waiting rank run a task, fetching within the cap? */
+static bool model_some_could_run(const sim_t *m, const int32_t *holder, int rank, int64_t cap)
+{
+  for (int q = 0; q < m->P; q++)
+    if ((q == rank || m->S.waiting[q]) && model_rank_could_run(m, holder, q, cap)) return true;
+  return false;
+}
+
 /* May `rank` fetch what task t needs (the bound on what a rank holds, SCHED_HOLD_SHARE times its
- * share, and no busy rank, one neither waiting nor stopped, that holds at most SCHED_HOLD_SHARE
- * times its share, holds more of the block; unless nothing is in flight and every other rank
- * waits)? */
+ * share, no busy rank, one neither waiting nor stopped, that holds at most SCHED_HOLD_SHARE
+ * times its share, holds more of the block, and work worth the tets fetched,
+ * SCHED_MOVE_WORTH; when nothing is in flight and every other rank waits, only the first,
+ * and only while this or another waiting rank could run a task within it)? */
 static bool model_may_fetch(const sim_t *m, const int32_t *holder, int rank, sched_task_t t)
 {
   const int64_t f = fetch_cost(m, holder, rank, t);
   if (f == 0 || m->P == 1) return true;
   bool stalled = m->nfl == 0;
   for (int q = 0; q < m->P; q++) stalled &= q == rank || m->S.waiting[q] || m->S.done[q];
-  if (stalled) return true;
   const int b = model_best_rank(m, holder, t);
   int64_t held = 0, held_b = 0, total = 0;
   for (uint32_t c = 0; c < m->S.ncells; c++) {
@@ -440,7 +465,10 @@ static bool model_may_fetch(const sim_t *m, const int32_t *holder, int rank, sch
     if (holder[c] == rank) held += m->S.tets[c] + 1;
     if (holder[c] == b) held_b += m->S.tets[c] + 1;
   }
+  const int64_t cap = (int64_t)((double)total * SCHED_HOLD_SHARE / m->P);
+  if (stalled) return held + f <= cap || !model_some_could_run(m, holder, rank, cap);
   if (b != rank && !m->S.waiting[b] && !m->S.done[b] && (double)held_b * m->P <= (double)total * SCHED_HOLD_SHARE) return false;
+  if ((double)(t.wide ? m->S.wide[t.cell] : m->S.work[t.cell]) * SCHED_MOVE_WORTH < (double)f) return false; /* (not worth it) */
   return held + f <= (int64_t)((double)total * SCHED_HOLD_SHARE / m->P);
 }
 
@@ -876,6 +904,54 @@ static void test_busy_by_hand(void)
   sched_free(&S);
 }
 
+/* A task fetches data only for work worth it (SCHED_MOVE_WORTH), unless the run would stall. */
+static void test_move_worth(void)
+{
+  const int32_t n[3] = {8, 8, 8};
+  sched_t S;
+  sched_task_t t[4];
+  CU_ASSERT_FATAL(sched_init(&S, n, 2) == I2M_OK);
+  for (uint32_t c = 0; c < S.ncells; c++) {
+    S.holder[c] = 1; /* rank 1 holds everything, and runs a task (no block locked here) */
+    S.tets[c] = 1000;
+  }
+  S.inflight[1] = 1;
+  const int64_t fetch = 8 * 1001; /* cell 0's block: the corner's 8 cells, each weighing one more */
+  S.work[0] = (int64_t)ceil((double)fetch / SCHED_MOVE_WORTH) - 1;
+  CU_ASSERT_EQUAL(sched_pick(&S, 0, 4, t), 0); /* too little work for its tets */
+  S.work[0]++;
+  CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 0, 4, t), 1); /* enough */
+  CU_ASSERT(t[0].cell == 0 && S.holder[0] == 0 && S.holder[1] == 0 && S.holder[2] == 1);
+  const sched_cell_t done0 = {0, 1, 0, 1000, 0, 0};
+  sched_feedback(&S, 0, t, 1, &done0, 1); /* one bad element left, rank 0 holds the block now */
+  S.work[511] = 1;                        /* one at the far corner, which rank 1 holds */
+  CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 0, 4, t), 1); /* its own first, fetching nothing */
+  CU_ASSERT(t[0].cell == 0);
+  sched_feedback(&S, 0, t, 1, &(sched_cell_t){0, 0, 0, 1000, 0, 0}, 1);
+  CU_ASSERT_EQUAL(sched_pick(&S, 0, 4, t), 0); /* cell 511's: not worth it while rank 1 works */
+  S.inflight[1] = 0;
+  S.waiting[1] = true; /* rank 1 waits and nothing is in flight: rank 0 fetches, or nobody would */
+  CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 0, 4, t), 1);
+  CU_ASSERT(t[0].cell == 511 && S.holder[511] == 0);
+  sched_free(&S);
+  /* a stall where the asking rank would hold over SCHED_HOLD_SHARE times its share: the waiting
+   * one, which would not, gets the task */
+  CU_ASSERT_FATAL(sched_init(&S, n, 2) == I2M_OK);
+  for (uint32_t c = 0; c < S.ncells; c++) {
+    S.holder[c] = c < 400 ? 0 : 1; /* rank 0: 400 cells of 1000 tets, above 1.3 / 2 of them all */
+    S.tets[c] = 1000;
+  }
+  const uint32_t across = (6 * 8 + 1) * 8 + 3; /* (3, 1, 6): its block has cells of both ranks */
+  S.work[across] = 100000;
+  S.waiting[1] = true;
+  CU_ASSERT_EQUAL(sched_pick(&S, 0, 4, t), 0);
+  CU_ASSERT(sched_other_could_run(&S, 0));
+  S.waiting[0] = true;
+  CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 1, 4, t), 1);
+  CU_ASSERT(t[0].cell == across && S.holder[across] == 1);
+  sched_free(&S);
+}
+
 static void test_best_rank_ties(void)
 {
   const int32_t n[3] = {3, 3, 3};
@@ -1028,6 +1104,7 @@ static const test_case_t tests[] = {
     {"deterministic phases and the wide pass, 1-5 ranks", test_det_phases},
     {"sched_wide_list", test_wide_list},
     {"busy, wide tasks alone, blocks apart, by hand", test_busy_by_hand},
+    {"fetching only for work worth the tets, or on a stall, by hand", test_move_worth},
     {"sched_best_rank and its ties", test_best_rank_ties},
     {"sched_balance by hand", test_balance_by_hand},
     {"sched_balance on random drifts, 2-5 ranks: legal moves, the bound or no move left", test_balance_random},

@@ -28,7 +28,7 @@
  *  (the knee: 1.73 M insertions from 456 k bad elements at the start), each ~14 us, and a tet
  *  moved ~0.9 us of packing, sending, joining and dropping: break-even near 60.  On the knee
  *  at 2 ranks, 58% of the tets fetched went to tasks that fetched over 1000 per bad element
- *  (about 9 bad elements, 90 k tets); 30 left one rank idle for a third of the run. */
+ *  (about 9 bad elements, 100 k tets); 30 left one rank idle for a third of the run. */
 #define SCHED_MOVE_WORTH 60.0
 
 /** A task: a cell (wide: its wide task, a block of 5^3 cells). */

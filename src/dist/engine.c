@@ -491,10 +491,7 @@ static void on_request(engine_t *E, int q)
   if (sched_busy(&E->S)) {
     E->S.waiting[q] = true;
     post_i64(E, q, TAG_WAIT, NULL, 0);
-    bool idle = true; /* (a stall whose fetch q may not make: another waiting rank may) */
-    for (int r = 0; r < E->par->size; r++) idle &= E->S.inflight[r] == 0;
-    for (int r = 0; r < E->par->size && idle; r++)
-      if (r != q && E->S.waiting[r] && try_give(E, r)) break;
+    serve_waiting(E); /* (a stall whose fetch q may not make: another waiting rank may) */
   } else {
     stop_rank(E, q);
   }

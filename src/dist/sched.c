@@ -188,6 +188,13 @@ static int64_t hold_cap(const sched_t *S, int64_t total)
   return S->nranks > 1 ? (int64_t)((double)total * SCHED_HOLD_SHARE / S->nranks) : INT64_MAX;
 }
 
+/* Would `rank` hold at most cap tets after fetching m for a task (a task that fetches nothing
+ * always may)? */
+static bool within_cap(const sched_t *S, int rank, int64_t m, int64_t cap)
+{
+  return m == 0 || S->held[rank] + m <= cap;
+}
+
 /* Is task t's work worth fetching m tets for?  Not when SCHED_MOVE_WORTH times its bad
  * elements are fewer: the task waits for a rank that holds more of its block, or for a stall. */
 static bool worth_moving(const sched_t *S, sched_task_t t, int64_t m)
@@ -206,7 +213,6 @@ static bool may_fetch(const sched_t *S, int rank, sched_task_t t, int64_t m, int
  * when stalled, may fetch for any task. */
 static uint32_t pick_tasks(sched_t *S, int rank, uint32_t max, sched_task_t *out, int64_t total, int64_t cap, bool stalled)
 {
-  const int64_t held = S->held[rank];
   uint32_t k = 0;
   while (k < max) {
     sched_task_t best = {0, false};
@@ -217,7 +223,7 @@ static uint32_t pick_tasks(sched_t *S, int rank, uint32_t max, sched_task_t *out
       if (!sched_runnable(S, t)) continue;
       const int h = S->home[c] == rank;
       const int64_t m = to_move(S, rank, t);
-      if (m > 0 && held + m > cap) continue;
+      if (!within_cap(S, rank, m, cap)) continue;
       if (m > 0 && !stalled && !may_fetch(S, rank, t, m, total)) continue;
       if (m < best_move || (m == best_move && (h > best_home || (h == best_home && S->work[c] > best_work)))) {
         best = t;
@@ -231,7 +237,7 @@ static uint32_t pick_tasks(sched_t *S, int rank, uint32_t max, sched_task_t *out
         const sched_task_t t = {c, true};
         if (!sched_runnable(S, t)) continue;
         const int64_t m = to_move(S, rank, t);
-        if (m > 0 && (held + m > cap || (!stalled && !may_fetch(S, rank, t, m, total)))) continue;
+        if (!within_cap(S, rank, m, cap) || (m > 0 && !stalled && !may_fetch(S, rank, t, m, total))) continue;
         sched_give(S, rank, t);
         out[0] = t;
         return 1;
@@ -252,8 +258,7 @@ bool sched_other_could_run(sched_t *S, int rank)
       for (int w = 0; w < 2; w++) {
         const sched_task_t t = {c, w != 0};
         if (!sched_runnable(S, t)) continue;
-        const int64_t m = to_move(S, q, t);
-        if (m == 0 || S->held[q] + m <= cap) return true;
+        if (within_cap(S, q, to_move(S, q, t), cap)) return true;
       }
   }
   return false;

@@ -66,6 +66,10 @@ void i2m_par_sum_i64(const i2m_par_t *par, int64_t *x, int n);
 int i2m_par_bcast_int(const i2m_par_t *par, int x);
 /** Waits for every rank (collective). */
 void i2m_par_barrier(const i2m_par_t *par);
+/** Threads for a phase this process runs alone while the other processes of its node wait
+ *  asleep (i2m_par_agree): T for each process of the node, within the cores this process
+ *  may use (no more than T when the launcher binds it to its own), never fewer than T. */
+int i2m_par_node_threads(const i2m_par_t *par, int T);
 
 /** Reads the image on rank 0 (i2m_image_read_with) and broadcasts it: every rank gets the
  *  same image, the file is read and decoded once (collective; errors agreed on). */

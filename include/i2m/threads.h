@@ -52,6 +52,11 @@ int i2m_threads_default(void);
  *  thread): a process asked for n threads uses at most n in any phase. */
 void i2m_threads_limit(int n);
 
+/** Sets the threads of every later OpenMP phase to n (>= 1), above the cap of
+ *  i2m_threads_limit too, and returns the count it replaces (to restore it).  For a phase that
+ *  one process runs while the others of its node wait asleep (i2m_par_node_threads). */
+int i2m_threads_set(int n);
+
 /** Refines to completion on o->threads threads (all rules, both phases).  Not collective. */
 i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep);
 void i2m_threads_report_free(i2m_threads_report_t *rep);

@@ -66,6 +66,21 @@ static void warn_split_components(const run_t *r)
   }
 }
 
+/* For a phase rank 0 runs alone (the stitched file, the figures of the whole mesh): its threads
+ * take the cores of the node's other ranks, which wait asleep meanwhile.  Returns the count to
+ * restore (0: nothing changed). */
+static int borrow_node_cores(const run_t *r)
+{
+  if (r->par->size == 1 || r->par->rank != 0) return 0;
+  const int T = r->opt.threads > 0 ? r->opt.threads : i2m_threads_default();
+  return i2m_threads_set(i2m_par_node_threads(r->par, T));
+}
+
+static void give_back_cores(int was)
+{
+  if (was > 0) i2m_threads_set(was);
+}
+
 /* The same step on every rank, its error agreed on. */
 #define AGREE(r, call) I2M_CALL(i2m_par_agree((r)->par, (call)))
 
@@ -93,7 +108,10 @@ static i2m_err_t run_mesher(run_t *r)
 
   i2m_pipeline_phase_begin(p, "writing the mesh");
   const i2m_write_opts_t wo = write_opts(r);
-  I2M_CALL(i2m_mesh_write_par(r->par, &p->mesh, o->output, &wo)); /* (agreed on inside) */
+  const int was = i2m_format_from_path(o->output) != I2M_FORMAT_PVTU ? borrow_node_cores(r) : 0;
+  const i2m_err_t err = i2m_mesh_write_par(r->par, &p->mesh, o->output, &wo); /* (agreed on inside) */
+  give_back_cores(was);
+  I2M_CALL(err);
   i2m_pipeline_phase_end(p, I2M_PHASE_WRITE);
   return I2M_OK;
 }
@@ -105,10 +123,12 @@ static i2m_err_t report(run_t *r)
   const i2m_refine_params_t *p = i2m_refine_params(pipe->ref);
   const bool whole = r->par->size == 1 || i2m_format_from_path(r->opt.output) != I2M_FORMAT_PVTU;
   i2m_pipeline_phase_begin(pipe, "quality figures");
+  const int was = whole ? borrow_node_cores(r) : 0;
+  i2m_err_t err = I2M_OK;
   if (r->par->rank == 0 || !whole) /* (one file: rank 0 has the whole mesh; pieces: each its own) */
-    AGREE(r, i2m_quality_compute(pipe->mesh, r->img, p->ratio, p->facet_angle, &r->quality));
-  else
-    AGREE(r, I2M_OK);
+    err = i2m_quality_compute(pipe->mesh, r->img, p->ratio, p->facet_angle, &r->quality);
+  give_back_cores(was);
+  AGREE(r, err);
   if (!whole) i2m_dist_reduce_quality(r->par, &r->quality);
   i2m_pipeline_phase_end(pipe, I2M_PHASE_QUALITY);
   memcpy(rep->phase_seconds, pipe->phase_seconds, sizeof rep->phase_seconds);

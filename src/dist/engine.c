@@ -894,8 +894,11 @@ static i2m_err_t write_trace(const i2m_par_t *par, const engine_t *E, const char
 }
 
 /* The component rule across the ranks: the pieces, the bridge points filed in the cells that
- * hold them, tasks again, until no large component is split (or a few rounds). */
-static i2m_err_t component_rule(engine_t *E, const i2m_threads_opts_t *to, i2m_threads_report_t *team)
+ * hold them, tasks again, until no large component is split (or a few rounds).  The output is
+ * spread again after the tasks (they may have moved cells), before the pieces are looked at
+ * again: a cell moved after the last look would make extraction build them once more. */
+static i2m_err_t component_rule(engine_t *E, const i2m_threads_opts_t *to, i2m_threads_report_t *team,
+                                i2m_dist_report_t *rep)
 {
   for (int round = 0; round < I2M_BRIDGE_ROUNDS; round++) {
     int64_t filed = 0;
@@ -905,21 +908,13 @@ static i2m_err_t component_rule(engine_t *E, const i2m_threads_opts_t *to, i2m_t
     I2M_CALL(i2m_dist_bridge_points(E->par, E->r, round, &filed));
     const double t2 = i2m_wtime();
     if (filed) I2M_CALL(engine_run(E, to, team));
-    i2m_debug("component rule: %lld bridge points; pieces %.2f s, points %.2f s, tasks %.2f s", (long long)filed, t1 - t0,
-              t2 - t1, i2m_wtime() - t2);
+    const double t3 = i2m_wtime();
+    if (filed) I2M_CALL(i2m_dist_balance(E->par, E->r, rep));
+    i2m_debug("component rule: %lld bridge points; pieces %.2f s, points %.2f s, tasks %.2f s, balance %.2f s",
+              (long long)filed, t1 - t0, t2 - t1, t3 - t2, i2m_wtime() - t3);
     if (!filed) break;
   }
   return I2M_OK;
-}
-
-/* Rank 0's threads for the coarse mesh.  Meanwhile the other ranks of its node wait asleep, so
- * it borrows their cores: as many threads as the node's ranks have in all, within the cores
- * this process may use (none more when the launcher binds it to its own). */
-static int coarse_threads(const i2m_par_t *par, int T)
-{
-  const int avail = i2m_threads_available();
-  const int n = T * par->local_size < avail ? T * par->local_size : avail;
-  return n > T ? n : T;
 }
 
 i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_opts_t *o, i2m_threads_report_t *team,
@@ -939,7 +934,7 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
   i2m_err_t err = I2M_OK;
   if (par->rank == 0) {
     i2m_threads_opts_t tc = to;
-    tc.threads = coarse_threads(par, T);
+    tc.threads = i2m_par_node_threads(par, T); /* (the other ranks of the node wait asleep) */
     err = i2m_threads_coarse(r, &tc, team);
     i2m_threads_report_free(team);
     if (err == I2M_OK && tc.threads != T) err = i2m_refine_set_workers(r, T);
@@ -960,8 +955,7 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
   if (err == I2M_OK) err = engine_run(&E, &to, team);
   if (err == I2M_OK) err = i2m_dist_balance(par, r, rep); /* (before the pieces are built: they would be again) */
   const double t2 = i2m_wtime();
-  if (err == I2M_OK) err = component_rule(&E, &to, team);
-  if (err == I2M_OK) err = i2m_dist_balance(par, r, rep); /* (the rule's tasks may have moved cells; none moved: the pieces stay) */
+  if (err == I2M_OK) err = component_rule(&E, &to, team, rep);
   i2m_debug("dist: tasks %.2f s, component rule %.2f s", t2 - E.t0, i2m_wtime() - t2);
   rep->fine_seconds = i2m_par_max(par, i2m_wtime() - E.t0);
   i2m_refine_stats_t st;

@@ -225,6 +225,13 @@ void i2m_par_barrier(const i2m_par_t *par) { (void)par; }
 
 #endif
 
+int i2m_par_node_threads(const i2m_par_t *par, int T)
+{
+  const int avail = i2m_threads_available();
+  const int n = T * par->local_size < avail ? T * par->local_size : avail;
+  return n > T ? n : T;
+}
+
 void i2m_par_self(i2m_par_t *par)
 {
   memset(par, 0, sizeof *par);

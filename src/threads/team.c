@@ -486,6 +486,13 @@ void i2m_threads_limit(int n)
   omp_set_num_threads(n < 1 ? 1 : n < now ? n : now);
 }
 
+int i2m_threads_set(int n)
+{
+  const int was = omp_get_max_threads();
+  omp_set_num_threads(n < 1 ? 1 : n);
+  return was;
+}
+
 i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep)
 {
   int T = team_size(o->threads > 0 ? o->threads : i2m_threads_default());

@@ -85,6 +85,9 @@ typedef struct {
   i2m_threads_opts_t threads; /**< per process: threads, coarse factor, pinning, deterministic, depth */
   const char *trace;          /**< a file of one line per task (rank 0 writes it), or NULL */
   int inject_failure;         /**< tests: the rank that fails in the middle of refinement (-1: none) */
+  bool spread_output;         /**< spread the output tets evenly over the ranks (i2m_dist_balance): when
+                                   each rank writes its own piece; a file stitched on rank 0 gains
+                                   less from it than the cells' move costs */
 } i2m_dist_opts_t;
 
 /** One rank's figures (the paper's Fig. 7 breakdown and the traffic). */

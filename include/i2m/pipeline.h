@@ -25,6 +25,7 @@ typedef struct {
   bool check;           /**< check the triangulation before extraction (--check) */
   bool checksum;        /**< compute the triangulation's checksum (for the JSON report) */
   const char *trace;    /**< --trace file, or NULL */
+  bool spread_output;   /**< distributed: each rank writes its own piece, spread the tets evenly */
 } i2m_pipeline_opts_t;
 
 /** A run: its inputs, what the steps produce, and their timings. */

@@ -53,7 +53,7 @@ static i2m_err_t refine(i2m_pipeline_t *p)
   const i2m_threads_opts_t to = threads_opts(&p->opt);
   if (!p->distributed) return i2m_par_agree(p->par, i2m_threads_refine(p->ref, &to, &p->team));
   const char *inject = getenv("I2M_INJECT_FAILURE"); /* (tests: a rank that fails in the middle of refinement) */
-  i2m_dist_opts_t d = {to, p->opt.trace, inject ? atoi(inject) : -1};
+  i2m_dist_opts_t d = {to, p->opt.trace, inject ? atoi(inject) : -1, p->opt.spread_output};
   return i2m_dist_refine(p->par, p->ref, &d, &p->team, &p->dist); /* (agreed on inside) */
 }
 
@@ -65,10 +65,11 @@ static i2m_err_t perturb_slivers(i2m_pipeline_t *p)
   if (!p->distributed) {
     err = i2m_par_agree(p->par, i2m_threads_perturb_slivers(p->ref, &to, p->opt.sliver_angle, &p->slivers));
   } else {
-    const i2m_dist_opts_t d = {to, NULL, -1};
+    const i2m_dist_opts_t d = {to, NULL, -1, p->opt.spread_output};
     err = i2m_dist_perturb_slivers(p->par, p->ref, &d, p->opt.sliver_angle, &p->slivers); /* (agreed on inside) */
   }
-  if (err == I2M_OK && p->distributed) err = i2m_dist_balance(p->par, p->ref, &p->dist); /* (its tasks move cells) */
+  if (err == I2M_OK && p->distributed && p->opt.spread_output) /* (its tasks move cells) */
+    err = i2m_dist_balance(p->par, p->ref, &p->dist);
   if (err != I2M_OK) return err;
   p->bands_before = p->slivers.bands_before; /* (the pass's first look at the mesh: this rank's tets) */
   i2m_par_sum_i64(p->par, p->bands_before.below, I2M_DIHEDRAL_NLOW);

@@ -38,7 +38,8 @@ static i2m_pipeline_opts_t pipeline_opts(const cli_options_t *o)
                                .deterministic = o->deterministic != 0,
                                .check = o->check != 0,
                                .checksum = o->report != NULL, /* (only the JSON report gives it) */
-                               .trace = o->trace};
+                               .trace = o->trace,
+                               .spread_output = i2m_format_from_path(o->output) == I2M_FORMAT_PVTU};
 }
 
 /* How the mesh is written: the writers' defaults, changed by the options; the image's tissue

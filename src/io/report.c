@@ -104,9 +104,12 @@ void i2m_report_print(FILE *f, const i2m_report_t *r)
               k, g->preprocess, g->meshing, g->comm, g->idle, (long long)g->tasks, (long long)g->insertions, (long long)g->tets,
               (long long)g->tiles_in, (long long)g->tiles_out, (long long)g->answered_while_refining, g->peak_rss / 1048576.0);
     }
-    fprintf(f, "    balance    %lld cells moved after the tasks, %.3g MB, %.2f s: the most output tets on a rank %.2f -> %.2f times the mean\n",
-            (long long)d->balance_cells, (double)d->balance_bytes / 1048576.0, d->balance_seconds, d->balance_before,
-            d->balance_after);
+    if (d->balance_calls)
+      fprintf(f, "    balance    %lld cells moved after the tasks, %.3g MB, %.2f s: the most output tets on a rank %.2f -> %.2f times the mean\n",
+              (long long)d->balance_cells, (double)d->balance_bytes / 1048576.0, d->balance_seconds, d->balance_before,
+              d->balance_after);
+    else if (d->ranks > 1)
+      fprintf(f, "    balance    none: one file, stitched on rank 0 (pieces, -o NAME.pvtu, are spread evenly)\n");
   }
   fprintf(f, "  memory       peak %.1f MB, %.0f bytes per output tet\n", (double)r->peak_rss / 1048576.0,
           r->nt ? (double)r->peak_rss / (double)r->nt : 0.0);

@@ -92,6 +92,7 @@ typedef struct {
   int64_t junction_skips; /**< R5 skipped near junctions of three or more labels */
   int64_t tets_created;
   int64_t deferred;       /**< deterministic mode: elements left to the sequential pass */
+  int64_t judged;         /**< dist: elements handed to another subregion, dropped as having nothing to do */
   int64_t bridges;        /**< free vertices the component rule inserted (R8, i2m_refine_bridge_splits) */
   int64_t bridge_rounds;  /**< rounds of the component rule that found a split */
   int64_t fragments;      /**< fragments relabelled (i2m_refine_repair_fragments) */
@@ -243,6 +244,9 @@ void i2m_refine_tiling_figures(const i2m_refine_t *r, double *side, int64_t *rou
  *  holds every tile (rank 0 after the coarse mesh), else none. */
 i2m_err_t i2m_refine_dist_begin(i2m_refine_t *r, bool hold_all);
 void i2m_refine_dist_end(i2m_refine_t *r);
+/** Asynchronous mode: each task drops the elements it hands to other tiles that have nothing
+ *  to do (judged in its block), so that they draw no task that would fetch data for them. */
+void i2m_refine_dist_judge_handoffs(i2m_refine_t *r, bool on);
 /** After tasks: the tets and vertices they made, filed in their tiles and in the id map. */
 i2m_err_t i2m_refine_dist_merge(i2m_refine_t *r);
 /** Does this rank hold tile id? */

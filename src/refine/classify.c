@@ -191,6 +191,24 @@ int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *ti)
   return -1;
 }
 
+bool classify_nothing_to_do(i2m_refine_worker_t *w, uint32_t t)
+{
+  const i2m_refine_t *r = w->r;
+  tet_geom_t g;
+  tet_centre(r, t, &g);
+  tet_probe(r, t, PROBE_CLOSEST, &g);
+  if (too_big(r, &g)) return false;
+  double z[3], d2;
+  uint32_t patch;
+  const bool meets = ball_meets_interface(&g, z, &patch, &d2);
+  /* a surface vertex found stays (refinement removes only free vertices): R1 will not fire */
+  if (meets && !own_vertex_near(r, t, z, patch) && !vgrid_has_within(&r->surf, r->dt, z, r->delta, patch)) return false;
+  for (uint32_t i = 0; i < 4; i++)
+    if (facet_bad(w, t, i)) return false;
+  if (!in_box(r->dt, g.cc)) return true;
+  return !(meets && g.r2 >= r->four_delta2) && !(g.label != 0 && volume_bad(r, t, &g));
+}
+
 /* The surface centre of facet i of t: where the Voronoi edge between the two circumcentres
  * crosses the interface; the seed is whichever of the two tets holds it in its circumball. */
 static bool facet_action(const i2m_refine_t *r, uint32_t t, uint32_t i, action_t *a)

@@ -205,6 +205,7 @@ void i2m_refine_get_stats(const i2m_refine_t *r, i2m_refine_stats_t *s)
     s->junction_skips += w->junction_skips;
     s->tets_created += w->tets_created;
     s->deferred += w->deferred;
+    s->judged += w->judged;
     s->bridges += w->bridges;
     s->seconds = fmax(s->seconds, w->seconds);
   }

@@ -273,6 +273,8 @@ struct i2m_refine {
   bool pieces_valid;
   struct sliver_pass *slivers;      /* owned: the sliver perturbation under way (slivers.c), or NULL */
   struct submesh *sub;              /* owned: the dist layer's bookkeeping (submesh.c), or NULL */
+  bool judge_handoffs;              /* dist, asynchronous: a task drops what it hands its neighbours
+                                       that has nothing to do (tiles.c, judge_handoffs) */
 };
 
 /* classify.c */
@@ -301,6 +303,10 @@ int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *g);
  *  set in skip (their point could not go in); 0 when nothing is to be done, -1 when R1's
  *  spacing test would look beyond the worker's tile's zone (deterministic mode). */
 int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t skip);
+/** Is it sure, from what the worker's block holds, that no rule wants anything of live tet t
+ *  (classify_action would find nothing)?  false when unsure: a face whose other side is not
+ *  held, R1 with no surface vertex found near the closest interface point. */
+bool classify_nothing_to_do(i2m_refine_worker_t *w, uint32_t t);
 
 /* vgrid.c */
 /** A grid of cells of side about h over the box [lo, hi] (grown by one cell). */

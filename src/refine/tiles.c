@@ -323,6 +323,29 @@ static i2m_err_t insert_tile_points(i2m_refine_worker_t *w, bool *full)
   return I2M_OK;
 }
 
+/* The elements this task handed to other tiles since entry n0 of its hand-overs, judged while
+ * its block is bound: a dead tet, or one with nothing to do, is dropped (the dist layer's
+ * asynchronous mode).  Such "perhaps" elements (a face across the block's edge, R1 when the
+ * tet's own vertices are not near enough) made the work that drew many of the last tasks of a
+ * run to fetch whole blocks and find nothing to do (knee at delta 0.33, 2 ranks: 37 of 165
+ * fetching batches made fewer than 50 tets and moved a third of the bytes).  Not in the
+ * deterministic mode: the surface grid near the block's edge depends on other threads. */
+static void judge_handoffs(i2m_refine_worker_t *w, uint32_t n0)
+{
+  const i2m_dt_t *dt = w->r->dt;
+  uint32_t k = n0;
+  for (uint32_t i = n0; i < w->nout; i++) {
+    const handoff_t h = w->out[i];
+    if (h.level >= 0 && i2m_dt_stamp(dt, h.t) != h.meta) continue; /* gone */
+    if (h.level == LEVEL_SURFACE && h.where == HAND_QUEUE && classify_nothing_to_do(w, h.t)) {
+      w->st.judged++;
+      continue;
+    }
+    w->out[k++] = h;
+  }
+  w->nout = k;
+}
+
 /* Worker k on tile id (its wide task when wide) until its lists are empty or its slots run
  * out; a task with bridge points inserts them and ends (its elements wait for the next). */
 static i2m_err_t run_tile(i2m_refine_t *r, int k, uint32_t id, bool wide)
@@ -330,6 +353,7 @@ static i2m_err_t run_tile(i2m_refine_t *r, int k, uint32_t id, bool wide)
   i2m_refine_worker_t *w = &r->workers[k];
   double t0 = i2m_wtime();
   tile_t *tl = &r->tiling->tile[id];
+  const uint32_t n0 = w->nout;
   tiles_bind(w, id, wide);
   int s = I2M_STEP_IDLE;
   bool full = false;
@@ -341,6 +365,7 @@ static i2m_err_t run_tile(i2m_refine_t *r, int k, uint32_t id, bool wide)
       s = worker_step(w);
     } while (s == I2M_STEP_DONE);
   }
+  if (r->judge_handoffs && !wide && s != I2M_STEP_ERROR) judge_handoffs(w, n0);
   full = w->tile_full;
   tiles_unbind(w);
   w->st.seconds += i2m_wtime() - t0;

@@ -59,11 +59,16 @@ static i2m_write_opts_t write_opts(const run_t *r)
  * then not what the user expects of it). */
 static void warn_split_components(const run_t *r)
 {
+  i2m_refine_stats_t st;
+  i2m_refine_get_stats(r->pipe.ref, &st);
   for (int l = 1; l < r->img->nlabels; l++) {
     const i2m_label_pieces_t *p = &r->pipe.pieces[l];
-    if (p->split_components)
-      fprintf(stderr, "i2m: warning: label %lld: %lld of its %lld image components of >= %d voxels come out in several pieces\n",
-              (long long)p->value, (long long)p->split_components, (long long)p->large_components, I2M_WHOLE_MIN_VOXELS);
+    if (p->split_components) /* (the rule's rounds and points say why: none placed, or rounds out) */
+      fprintf(stderr,
+              "i2m: warning: label %lld: %lld of its %lld image components of >= %d voxels come out in several pieces "
+              "(the component rule ran %lld of at most %d rounds, %lld bridge vertices%s)\n",
+              (long long)p->value, (long long)p->split_components, (long long)p->large_components, I2M_WHOLE_MIN_VOXELS,
+              (long long)st.bridge_rounds, I2M_BRIDGE_ROUNDS, (long long)st.bridges, r->par->size > 1 ? " on rank 0" : "");
   }
 }
 

@@ -418,6 +418,8 @@ static i2m_err_t bridge_round(i2m_refine_t *r, bool *more)
   I2M_CALL(i2m_refine_bridge_splits(r, I2M_WHOLE_MIN_VOXELS, &splits, &inserted));
   i2m_debug("component rule: %lld split components, %lld bridge vertices, %.2f s", (long long)splits, (long long)inserted,
             i2m_wtime() - t0);
+  if (splits && !inserted) /* (the split stays: say why, for the warning that follows) */
+    i2m_warn("i2m: the component rule found %lld split components but could place no bridge vertex", (long long)splits);
   *more = inserted > 0;
   return I2M_OK;
 }

@@ -26,6 +26,9 @@ typedef struct {
 } run_t;
 
 /* The pipeline's options from the command line's. */
+/* Does each rank write its own piece (-o NAME.pvtu), rather than rank 0 one stitched file? */
+static bool writes_pieces(const cli_options_t *o) { return i2m_format_from_path(o->output) == I2M_FORMAT_PVTU; }
+
 static i2m_pipeline_opts_t pipeline_opts(const cli_options_t *o)
 {
   return (i2m_pipeline_opts_t){.params = o->params,
@@ -39,7 +42,7 @@ static i2m_pipeline_opts_t pipeline_opts(const cli_options_t *o)
                                .check = o->check != 0,
                                .checksum = o->report != NULL, /* (only the JSON report gives it) */
                                .trace = o->trace,
-                               .spread_output = i2m_format_from_path(o->output) == I2M_FORMAT_PVTU};
+                               .spread_output = writes_pieces(o)};
 }
 
 /* How the mesh is written: the writers' defaults, changed by the options; the image's tissue
@@ -114,7 +117,7 @@ static i2m_err_t run_mesher(run_t *r)
 
   i2m_pipeline_phase_begin(p, "writing the mesh");
   const i2m_write_opts_t wo = write_opts(r);
-  const int was = i2m_format_from_path(o->output) != I2M_FORMAT_PVTU ? borrow_node_cores(r) : 0;
+  const int was = writes_pieces(o) ? 0 : borrow_node_cores(r);
   const i2m_err_t err = i2m_mesh_write_par(r->par, &p->mesh, o->output, &wo); /* (agreed on inside) */
   give_back_cores(was);
   I2M_CALL(err);
@@ -127,7 +130,7 @@ static i2m_err_t report(run_t *r)
   i2m_report_t *rep = &r->rep;
   i2m_pipeline_t *pipe = &r->pipe;
   const i2m_refine_params_t *p = i2m_refine_params(pipe->ref);
-  const bool whole = r->par->size == 1 || i2m_format_from_path(r->opt.output) != I2M_FORMAT_PVTU;
+  const bool whole = r->par->size == 1 || !writes_pieces(&r->opt);
   i2m_pipeline_phase_begin(pipe, "quality figures");
   const int was = whole ? borrow_node_cores(r) : 0;
   i2m_err_t err = I2M_OK;

@@ -175,6 +175,13 @@ static bool own_vertex_near(const i2m_refine_t *r, uint32_t t, const double z[3]
   return false;
 }
 
+/* R2 (a ball meeting an interface, radius of 2 delta or more), R3 or R4 (a labelled tet's ratio
+ * or size), for a tet whose centre lies in the box: the rules that insert its circumcentre. */
+static bool centre_rule_fires(const i2m_refine_t *r, uint32_t t, const tet_geom_t *ti, bool meets)
+{
+  return (meets && ti->r2 >= r->four_delta2) || (ti->label != 0 && volume_bad(r, t, ti));
+}
+
 int classify_level(i2m_refine_worker_t *w, uint32_t t, const tet_geom_t *ti)
 {
   const i2m_refine_t *r = w->r;
@@ -205,8 +212,7 @@ bool classify_nothing_to_do(i2m_refine_worker_t *w, uint32_t t)
   if (meets && !own_vertex_near(r, t, z, patch) && !vgrid_has_within(&r->surf, r->dt, z, r->delta, patch)) return false;
   for (uint32_t i = 0; i < 4; i++)
     if (facet_bad(w, t, i)) return false;
-  if (!in_box(r->dt, g.cc)) return true;
-  return !(meets && g.r2 >= r->four_delta2) && !(g.label != 0 && volume_bad(r, t, &g));
+  return !in_box(r->dt, g.cc) || !centre_rule_fires(r, t, &g, meets);
 }
 
 /* The surface centre of facet i of t: where the Voronoi edge between the two circumcentres
@@ -282,7 +288,7 @@ int classify_action(i2m_refine_worker_t *w, uint32_t t, action_t *a, uint32_t sk
     w->st.failed++; /* no surface centre could be placed: counted, never silent */
   }
   if (!in_box(dt, ti->cc) || (skip & (1u << 2 | 1u << 3 | 1u << 4))) return 0;
-  if ((meets && ti->r2 >= r->four_delta2) || (ti->label != 0 && volume_bad(r, t, ti))) { /* R2, R3, R4 */
+  if (centre_rule_fires(r, t, ti, meets)) { /* R2, R3, R4 */
     memcpy(a->p, ti->cc, sizeof a->p);
     a->kind = I2M_VK_FREE;
     a->rule = (meets && ti->r2 >= r->four_delta2) ? 2 : volume_rule(r, ti);

@@ -482,17 +482,17 @@ static int team_size(int T)
   return got;
 }
 
-void i2m_threads_limit(int n)
-{
-  const int now = omp_get_max_threads();
-  omp_set_num_threads(n < 1 ? 1 : n < now ? n : now);
-}
-
 int i2m_threads_set(int n)
 {
   const int was = omp_get_max_threads();
   omp_set_num_threads(n < 1 ? 1 : n);
   return was;
+}
+
+void i2m_threads_limit(int n)
+{
+  const int now = omp_get_max_threads();
+  i2m_threads_set(n < now ? n : now);
 }
 
 i2m_err_t i2m_threads_refine(i2m_refine_t *r, const i2m_threads_opts_t *o, i2m_threads_report_t *rep)

@@ -187,6 +187,9 @@ i2m_err_t i2m_components_build(const int64_t lo[3], const int64_t n[3], i2m_labe
 i2m_err_t i2m_image_components(const i2m_image_t *img, i2m_components_t *c);
 /** Root run of voxel (i,j,k)'s component, -1 outside the block (its size: c->size[root]). */
 int64_t i2m_components_find(const i2m_components_t *c, int64_t i, int64_t j, int64_t k);
+/** Root run of voxel (i,j,k)'s component if the voxel has label index lab, else -1 (also
+ *  outside the block): the label from the runs, without a read of the image. */
+int64_t i2m_components_find_label(const i2m_components_t *c, int64_t i, int64_t j, int64_t k, int lab);
 void i2m_components_free(i2m_components_t *c);
 
 /** Grid frame -> world (LPS). */

@@ -107,7 +107,8 @@ fail:
   return err;
 }
 
-int64_t i2m_components_find(const i2m_components_t *c, int64_t i, int64_t j, int64_t k)
+/* The run that holds voxel (i,j,k), -1 outside the block. */
+static int64_t run_of(const i2m_components_t *c, int64_t i, int64_t j, int64_t k)
 {
   i -= c->lo[0];
   j -= c->lo[1];
@@ -121,7 +122,19 @@ int64_t i2m_components_find(const i2m_components_t *c, int64_t i, int64_t j, int
     else
       hi = mid - 1;
   }
-  return c->par[lo];
+  return lo;
+}
+
+int64_t i2m_components_find(const i2m_components_t *c, int64_t i, int64_t j, int64_t k)
+{
+  const int64_t run = run_of(c, i, j, k);
+  return run < 0 ? -1 : c->par[run];
+}
+
+int64_t i2m_components_find_label(const i2m_components_t *c, int64_t i, int64_t j, int64_t k, int lab)
+{
+  const int64_t run = run_of(c, i, j, k);
+  return run < 0 || c->lab[run] != lab ? -1 : c->par[run];
 }
 
 void i2m_components_free(i2m_components_t *c)

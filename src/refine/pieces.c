@@ -117,12 +117,15 @@ static void key_min(i2m_gidx_t acc[4], const i2m_gidx_t k[4])
 
 /* ---- the parts of the local mesh ---- */
 
-/* The image component of voxel-frame point u if its voxel has label index lab, else -1. */
+/* The image component of voxel-frame point u if its voxel has label index lab, else -1.  The
+ * label comes from the components' runs (built over the transform's block K, with its labels),
+ * not from the transform's words: a tet's circumcentre falls anywhere in a large array, the
+ * runs of its row are small (the describe pass took 85% of its time in that one load). */
 static int64_t component_at(const i2m_refine_t *r, const double u[3], int lab)
 {
   int64_t v[3];
-  if (!i2m_edt_image_voxel_k(r->edt, u, v) || i2m_edt_label_voxel(r->edt, v[0], v[1], v[2]) != lab) return -1;
-  return i2m_components_find(&r->pieces_ic, v[0], v[1], v[2]);
+  if (!i2m_edt_image_voxel_k(r->edt, u, v)) return -1;
+  return i2m_components_find_label(&r->pieces_ic, v[0], v[1], v[2], lab);
 }
 
 /* The component tet t stands for: that of its circumcentre, if it lies in its label (-1). */

@@ -227,6 +227,15 @@ void tiles_bind(i2m_refine_worker_t *w, uint32_t id, bool wide)
   w->tile_wide = wide;
 }
 
+uint32_t tiles_of_block(const tiling_t *g, const i2m_dt_block_t *b, uint32_t out[125])
+{
+  uint32_t n = 0;
+  for (int32_t k = b->lo[2]; k <= b->hi[2]; k++)
+    for (int32_t j = b->lo[1]; j <= b->hi[1]; j++)
+      for (int32_t i = b->lo[0]; i <= b->hi[0]; i++) out[n++] = tile_index(g, (int32_t[3]){i, j, k});
+  return n;
+}
+
 void tiles_unbind(i2m_refine_worker_t *w)
 {
   swap_tile(w, w->tile, w->tile_wide);
@@ -316,10 +325,9 @@ static i2m_err_t insert_tile_points(i2m_refine_worker_t *w, bool *full)
   memmove(pts, pts + done, (n - done) * sizeof *pts);
   if (wide) tl->nwpts = n - done;
   else tl->npts = n - done;
-  const i2m_dt_block_t *b = wide ? &tl->wblock : &tl->block;
-  for (int32_t k = b->lo[2]; k <= b->hi[2]; k++)
-    for (int32_t j = b->lo[1]; j <= b->hi[1]; j++)
-      for (int32_t i = b->lo[0]; i <= b->hi[0]; i++) r->tiling->tile[tile_index(r->tiling, (int32_t[3]){i, j, k})].dirty = true;
+  uint32_t ids[125];
+  const uint32_t nb = tiles_of_block(r->tiling, wide ? &tl->wblock : &tl->block, ids);
+  for (uint32_t i = 0; i < nb; i++) r->tiling->tile[ids[i]].dirty = true;
   return I2M_OK;
 }
 

@@ -247,6 +247,9 @@ static void test_components(void)
     if (root_of_fill[fill[v]] < 0) root_of_fill[fill[v]] = root;
     CU_ASSERT_EQUAL(root_of_fill[fill[v]], root);
     CU_ASSERT_EQUAL(c.lab[root], i2m_image_index(img, v));
+    const int lab = i2m_image_index(img, v); /* the label from the runs: the voxel's own only */
+    CU_ASSERT_EQUAL(i2m_components_find_label(&c, v % n[0], v / n[0] % n[1], v / (n[0] * n[1]), lab), root);
+    CU_ASSERT_EQUAL(i2m_components_find_label(&c, v % n[0], v / n[0] % n[1], v / (n[0] * n[1]), lab + 1), -1);
   }
   int64_t nroots = 0;
   for (int64_t r = 0; r < c.nruns; r++) nroots += c.par[r] == r;
@@ -256,6 +259,7 @@ static void test_components(void)
   CU_ASSERT_FATAL(i2m_components_build(lo, bn, image_row, img, &c) == I2M_OK);
   CU_ASSERT_EQUAL(i2m_components_find(&c, 1, 1, 3), -1);
   CU_ASSERT_EQUAL(i2m_components_find(&c, 7, 1, 3), -1);
+  CU_ASSERT_EQUAL(i2m_components_find_label(&c, 7, 1, 3, i2m_image_label_voxel(img, 7, 1, 3)), -1); /* (outside) */
   int64_t total = 0;
   for (int64_t r = 0; r < c.nruns; r++) total += c.par[r] == r ? c.size[r] : 0;
   CU_ASSERT_EQUAL(total, bn[0] * bn[1] * bn[2]);

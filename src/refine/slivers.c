@@ -80,6 +80,7 @@ typedef struct {
   uint32_t *touched, ntouched, cap_touched; /* tets the moves of this round made */
   sliver_list_t deferred;                   /* slivers a zone could not hold */
   sliver_list_t inner;                      /* dist: a task's later rounds' slivers */
+  uint32_t *stale, nstale, cap_stale;       /* dist: tiles beyond its tasks' blocks that got tets */
   uint32_t *saved, cap_saved;               /* an in-place move's tets: labels and tiles before */
   uint64_t rng;
   int64_t tried, kept, in_place, in_place_kept; /* in_place: the moves tried without a removal */
@@ -113,17 +114,17 @@ struct sliver_pass {
   watch_list_t watch;     /* every output tet worth a look has a valid entry (watch_valid) */
   uint8_t *changed_in;    /* [nchanged_in] per tet slot: the round that last changed it, 0 none */
   size_t nchanged_in;
-  /* Under the dist layer: each held tile's count of slivers, kept until a task's block or an
-   * arrival changes the tile, or the stage what counts (the rounds' seeds counted every held
-   * tile anew: a look at each of the rank's tets per round), and the lists of the tiles of
-   * the job about to run (made when they are granted their slots; the tasks used to make
-   * them again) */
-  int64_t *count;         /* [ncount] -1: not known */
-  uint32_t ncount;
-  double count_bound;     /* the stage the counts are of */
-  bool count_caps;
-  sliver_list_t *prep;    /* [nprep] the slivers of the job's tiles, in the order of active */
-  uint32_t nprep;
+  /* Under the dist layer: each held tile's slivers, in order (its task's list; their number is
+   * the tile's work for the scheduler), made by a look at the tile's tets and then kept up to
+   * date by the tasks that change the tile (the entries still alive, and the slivers among
+   * the tets the task made), until the tile arrives from another rank or the stage changes
+   * what counts.  The rounds' seeds looked at every held tile's tets anew, and the tasks
+   * again: on the knee at 2 ranks, 15 degrees, a tenth of each rank's time in the pass. */
+  sliver_list_t *cache;   /* [ncache] */
+  uint8_t *cache_ok;      /* [ncache] */
+  uint32_t ncache;
+  double cache_bound;     /* the stage the lists are of */
+  bool cache_caps;
 };
 
 enum { MOVE_ERROR = -1, MOVE_UNDONE = 0, MOVE_KEPT = 1, MOVE_DEFERRED = 2, MOVE_NOT_IN_PLACE = 3 };
@@ -1065,6 +1066,7 @@ static void pass_free(i2m_refine_t *r)
     i2m_free(&P->touched);
     i2m_free(&P->deferred.a);
     i2m_free(&P->inner.a);
+    i2m_free(&P->stale);
   }
   i2m_free(&S->per);
   i2m_free(&S->list.a);
@@ -1074,9 +1076,9 @@ static void pass_free(i2m_refine_t *r)
   i2m_free(&S->first);
   i2m_free(&S->by_tile);
   i2m_free(&S->active);
-  i2m_free(&S->count);
-  for (uint32_t i = 0; S->prep && i < S->nprep; i++) i2m_free(&S->prep[i].a);
-  i2m_free(&S->prep);
+  for (uint32_t i = 0; S->cache && i < S->ncache; i++) i2m_free(&S->cache[i].a);
+  i2m_free(&S->cache);
+  i2m_free(&S->cache_ok);
   i2m_free(&r->slivers);
 }
 
@@ -1327,26 +1329,34 @@ i2m_err_t i2m_refine_slivers_dist_begin(i2m_refine_t *r, double bound)
   I2M_CALL(pass_new(r, bound)); /* (this rank's figures before) */
   struct sliver_pass *S = r->slivers;
   S->list.n = 0; /* (each task lists its tile's slivers) */
-  S->ncount = r->tiling->ntiles;
-  S->count_bound = -1.0; /* (no stage yet: every count unknown) */
-  i2m_err_t err = i2m_malloc(S->ncount, sizeof *S->count, &S->count);
-  if (err == I2M_OK) err = i2m_calloc(r->tiling->ntiles, sizeof *S->prep, &S->prep);
+  S->ncache = r->tiling->ntiles;
+  S->cache_bound = -1.0; /* (no stage yet) */
+  i2m_err_t err = i2m_calloc(S->ncache, sizeof *S->cache, &S->cache);
+  if (err == I2M_OK) err = i2m_calloc(S->ncache, sizeof *S->cache_ok, &S->cache_ok);
   if (err != I2M_OK) pass_free(r);
   return err;
 }
 
-/* The counts are of the stage under way (a new stage: all unknown). */
-static void counts_of_stage(struct sliver_pass *S)
+/* The tiles' lists are of the stage under way (a new stage: none known), and none that a task
+ * made tets in beyond its block is. */
+static void caches_now(i2m_refine_t *r)
 {
-  if (S->count_bound == S->bound && S->count_caps == S->caps) return;
-  for (uint32_t i = 0; i < S->ncount; i++) S->count[i] = -1;
-  S->count_bound = S->bound;
-  S->count_caps = S->caps;
+  struct sliver_pass *S = r->slivers;
+  if (S->cache_bound != S->bound || S->cache_caps != S->caps) {
+    memset(S->cache_ok, 0, S->ncache);
+    S->cache_bound = S->bound;
+    S->cache_caps = S->caps;
+  }
+  for (int k = 0; k < r->nworkers; k++) {
+    perturb_t *P = &S->per[k];
+    for (uint32_t i = 0; i < P->nstale; i++) S->cache_ok[P->stale[i]] = 0;
+    P->nstale = 0;
+  }
 }
 
 void slivers_forget_count(i2m_refine_t *r, uint32_t id)
 {
-  if (r->slivers && r->slivers->count) r->slivers->count[id] = -1;
+  if (r->slivers && r->slivers->cache_ok) r->slivers->cache_ok[id] = 0;
 }
 
 void i2m_refine_slivers_dist_round(i2m_refine_t *r, double bound, int round, bool wide)
@@ -1376,33 +1386,37 @@ static i2m_err_t tile_slivers(const i2m_refine_t *r, uint32_t id, sliver_list_t 
   return I2M_OK;
 }
 
-int64_t i2m_refine_tile_sliver_count(i2m_refine_t *r, uint32_t id)
+/* Tile id's list, made if it is not known (the master thread, no job running). */
+static i2m_err_t tile_cache(i2m_refine_t *r, uint32_t id, const sliver_list_t **out)
 {
   struct sliver_pass *S = r->slivers;
-  counts_of_stage(S);
-  if (S->count[id] >= 0) return S->count[id];
-  if (tile_slivers(r, id, &S->list) != I2M_OK) return 0;
-  S->count[id] = (int64_t)S->list.n;
-  S->list.n = 0;
-  return S->count[id];
+  caches_now(r);
+  if (!S->cache_ok[id]) {
+    I2M_CALL(tile_slivers(r, id, &S->cache[id]));
+    S->cache_ok[id] = 1;
+  }
+  *out = &S->cache[id];
+  return I2M_OK;
+}
+
+int64_t i2m_refine_tile_sliver_count(i2m_refine_t *r, uint32_t id)
+{
+  const sliver_list_t *L;
+  return tile_cache(r, id, &L) == I2M_OK ? (int64_t)L->n : 0;
 }
 
 i2m_err_t i2m_refine_slivers_dist_prepare(i2m_refine_t *r, const uint32_t *tiles, uint32_t n)
 {
   tiling_t *g = r->tiling;
-  struct sliver_pass *S = r->slivers;
   pieces_invalidate(r); /* (the moves change the mesh) */
-  counts_of_stage(S);
   g->nactive = 0;
   for (uint32_t i = 0; i < n; i++) {
-    sliver_list_t *L = &S->prep[i];
-    I2M_CALL(tile_slivers(r, tiles[i], L));
-    S->count[tiles[i]] = (int64_t)L->n;
+    const sliver_list_t *L;
+    I2M_CALL(tile_cache(r, tiles[i], &L));
     const int64_t m = (int64_t)L->n;
     I2M_CALL(i2m_dt_slots_grant(r->dt, &g->tile[tiles[i]].slots, (uint32_t)(256 + 64 * m), (uint32_t)(16 + 2 * m)));
     g->active[g->nactive++] = tiles[i];
   }
-  S->nprep = n;
   I2M_CALL(vgrid_reserve(&r->surf, r->dt->cap_v)); /* nobody grows the grids while tiles run */
   return vgrid_reserve(&r->freev, r->dt->cap_v);
 }
@@ -1430,6 +1444,50 @@ static i2m_err_t born_slivers(const i2m_refine_t *r, const perturb_t *P, sliver_
   return I2M_OK;
 }
 
+/* After a task that kept changes (its block still bound): each of its block's known lists
+ * keeps its entries still alive and gains the slivers among the output tets the task made
+ * there, in order: the same list a look at the tile's tets would make.  A move in place keeps
+ * its tets' slots but not their angles: after one, the block's lists are not known. */
+static i2m_err_t update_caches(i2m_refine_t *r, perturb_t *P, uint32_t born0, bool moved_in_place)
+{
+  struct sliver_pass *S = r->slivers;
+  const i2m_dt_t *dt = r->dt;
+  const i2m_refine_worker_t *w = P->w;
+  uint32_t ids[125];
+  const uint32_t nb = tiles_of_block(r->tiling, w->ctx.block, ids);
+  if (moved_in_place) {
+    for (uint32_t i = 0; i < nb; i++) S->cache_ok[ids[i]] = 0;
+    return I2M_OK;
+  }
+  for (uint32_t i = 0; i < nb; i++) {
+    if (!S->cache_ok[ids[i]]) continue;
+    sliver_list_t *L = &S->cache[ids[i]];
+    size_t n = 0;
+    for (size_t j = 0; j < L->n; j++)
+      if (i2m_dt_stamp(dt, L->a[j].t) == L->a[j].meta) L->a[n++] = L->a[j];
+    L->n = n;
+  }
+  const double cos_bound = cos(S->bound * (I2M_PI / 180.0));
+  for (uint32_t i = w->nborn > born0 ? born0 : w->nborn; i < w->nborn; i++) {
+    const uint32_t t = w->born[i].t;
+    if (i2m_dt_stamp(dt, t) != w->born[i].meta || !tet_kept(dt, t)) continue;
+    const uint32_t id = tiles_tile_of_tet(r, t);
+    bool inside = false;
+    for (uint32_t j = 0; j < nb && !inside; j++) inside = ids[j] == id;
+    if (!inside) { /* (beyond the block: known again only after the job, see caches_now) */
+      I2M_CALL(grow_list(&P->stale, &P->cap_stale, P->nstale + 1));
+      P->stale[P->nstale++] = id;
+      continue;
+    }
+    if (S->cache_ok[id]) I2M_CALL(consider(dt, t, tet_badness(r, t, NULL), cos_bound, &S->cache[id]));
+  }
+  for (uint32_t i = 0; i < nb; i++) {
+    sliver_list_t *L = &S->cache[ids[i]];
+    if (S->cache_ok[ids[i]] && L->n > 1) qsort(L->a, L->n, sizeof *L->a, cmp_sliver);
+  }
+  return I2M_OK;
+}
+
 /* Worker k on tile id's slivers (dist): up to TASK_ROUNDS rounds, the later ones over the
  * slivers among the tets the task made in its zone.  Each global round moves blocks between
  * the ranks, and the slivers a round's changes make are mostly next to them: without the
@@ -1438,13 +1496,11 @@ static i2m_err_t born_slivers(const i2m_refine_t *r, const perturb_t *P, sliver_
 static i2m_err_t tile_slivers_dist(i2m_refine_t *r, int k, uint32_t id)
 {
   struct sliver_pass *S = r->slivers;
-  const tiling_t *g = r->tiling;
   perturb_t *P = &S->per[k];
-  uint32_t at = 0;
-  while (at < g->nactive && g->active[at] != id) at++;
-  I2M_CHECK(at < S->nprep, I2M_ERR_INTERNAL, "tile %u's slivers were not listed before its task", id);
-  const sliver_list_t *L = &S->prep[at];
-  const int64_t changes0 = P->kept + P->inserted;
+  I2M_CHECK(S->cache_ok[id], I2M_ERR_INTERNAL, "tile %u's slivers were not listed before its task", id);
+  const sliver_list_t *L = &S->cache[id];
+  const int64_t changes0 = P->kept + P->inserted, in_place0 = P->in_place_kept;
+  const uint32_t born0 = P->w->nborn;
   P->rng = rng_seed(r, S->round, id);
   tiles_bind(P->w, id, false);
   i2m_err_t err = treat_all(P, L->a, L->n);
@@ -1453,11 +1509,8 @@ static i2m_err_t tile_slivers_dist(i2m_refine_t *r, int k, uint32_t id)
     if (err != I2M_OK || P->inner.n == 0) break;
     err = treat_all(P, P->inner.a, P->inner.n);
   }
-  if (P->kept + P->inserted != changes0) { /* (else every trial was undone: the same tets) */
-    uint32_t ids[125];
-    const uint32_t nb = tiles_of_block(g, P->w->ctx.block, ids);
-    for (uint32_t i = 0; i < nb; i++) S->count[ids[i]] = -1;
-  }
+  if (err == I2M_OK && P->kept + P->inserted != changes0) /* (else every trial was undone: the same tets) */
+    err = update_caches(r, P, born0, P->in_place_kept != in_place0);
   tiles_unbind(P->w);
   P->deferred.n = 0; /* (the next round's task finds them again, maybe with its zone placed better) */
   P->ntouched = 0;

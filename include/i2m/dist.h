@@ -135,8 +135,9 @@ void i2m_dist_report_free(i2m_dist_report_t *rep);
 /** The sliver perturbation (i2m_refine_perturb_slivers) of the distributed mesh: the octree's
  *  cells with slivers as tasks, one pass over them per round (a task treats its cell's slivers
  *  inside its zone, the worst first, then in up to 4 rounds of its own the slivers it made
- *  there), rounds while moves are kept (after the first, with more targets), then the same with
- *  the too wide angles; every kept move
+ *  there), rounds while moves are kept (after the first, with more targets and, until one
+ *  keeps nothing, only the tasks whose block a rank holds), then the same with the too wide
+ *  angles; every kept move
  *  passes every refinement rule.  *st: the whole mesh's figures.  Collective (after
  *  i2m_dist_refine). */
 i2m_err_t i2m_dist_perturb_slivers(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_opts_t *o, double bound,

@@ -92,6 +92,7 @@ typedef struct {
   sched_t S;
   int stopped;                 /* ranks told to stop */
   bool slivers;                /* the tasks are the sliver perturbation's (one pass over the cells) */
+  bool held_only;              /* asynchronous: only tasks whose whole block the rank holds (a sliver round) */
   uint8_t *done;               /* rank 0, slivers: [ncells] cells whose task ran this pass */
   int det_stage, det_color, det_pending;
   bool det_points;             /* this round's tasks insert bridge points only (as one process inserts them at once) */
@@ -454,7 +455,7 @@ static bool try_give(engine_t *E, int q)
   int32_t *saved = NULL;
   check(E, i2m_malloc(S->ncells, sizeof *saved, &saved));
   memcpy(saved, S->holder, S->ncells * sizeof *saved);
-  const uint32_t n = sched_pick(S, q, max, tasks);
+  const uint32_t n = E->held_only ? sched_pick_held(S, q, max, tasks) : sched_pick(S, q, max, tasks);
   if (n) {
     int32_t *now = S->holder;
     S->holder = saved; /* the Location before */
@@ -475,12 +476,16 @@ static void stop_rank(engine_t *E, int q)
   E->stopped++;
 }
 
+/* Can a task still come (asynchronous mode)?  While some run (their feedback may bring work),
+ * or, when a rank may fetch, while any cell has work. */
+static bool more_may_come(const engine_t *E) { return E->held_only ? sched_in_flight(&E->S) : sched_busy(&E->S); }
+
 /* After feedback (asynchronous mode): the waiting list served, or everybody stopped. */
 static void serve_waiting(engine_t *E)
 {
   for (int q = 0; q < E->par->size; q++)
     if (E->S.waiting[q]) try_give(E, q);
-  if (sched_busy(&E->S)) return;
+  if (more_may_come(E)) return;
   for (int q = 0; q < E->par->size; q++)
     if (E->S.waiting[q]) stop_rank(E, q);
 }
@@ -488,7 +493,7 @@ static void serve_waiting(engine_t *E)
 static void on_request(engine_t *E, int q)
 {
   if (try_give(E, q)) return;
-  if (sched_busy(&E->S)) {
+  if (more_may_come(E)) {
     E->S.waiting[q] = true;
     post_i64(E, q, TAG_WAIT, NULL, 0);
     serve_waiting(E); /* (a stall whose fetch q may not make: another waiting rank may) */
@@ -1021,12 +1026,16 @@ i2m_err_t i2m_dist_perturb_slivers(const i2m_par_t *par, i2m_refine_t *r, const 
   int round = 0;
   for (int k = 0; k < 2 && err == I2M_OK; k++) { /* the stages: the slivers, then the caps too */
     if (k == 1) i2m_refine_slivers_caps(r);
+    bool fetch = true;
     for (int n = 0; n < SLIVER_ROUNDS && err == I2M_OK; n++, round++) { /* rounds while moves are kept */
       /* After a stage's first round its slivers are few (the tasks' own rounds took most of
        * the rest), and a round moves the blocks of their cells: every later round is wide
        * (more targets, farther), where one process has one only after a round that kept
-       * nothing.  (Knee and liver at 2 ranks, 15 degrees: 7-8 rounds instead of 8-10.) */
+       * nothing (knee and liver at 2 ranks, 15 degrees: 7-8 rounds instead of 8-10), and
+       * (asynchronous mode) runs only the tasks whose whole block a rank holds, until one
+       * keeps nothing; then a round may fetch again. */
       const bool wide = n > 0;
+      E.held_only = !fetch && !E.det;
       int64_t before[2], after[2];
       i2m_refine_slivers_dist_moves(r, &before[0], &before[1]);
       i2m_refine_slivers_dist_round(r, bound, round, wide);
@@ -1038,8 +1047,10 @@ i2m_err_t i2m_dist_perturb_slivers(const i2m_par_t *par, i2m_refine_t *r, const 
       i2m_par_sum_i64(par, &kept, 1);
       i2m_debug("slivers: %s stage, round %d: %lld moves kept (%.3f s)", k ? "caps" : "slivers", round, (long long)kept,
                 i2m_wtime() - t0);
-      if (kept == 0 && wide) break;
+      if (kept == 0 && wide && fetch) break;
+      fetch = kept == 0 || E.det;
     }
+    E.held_only = false;
   }
   const i2m_err_t end = i2m_refine_slivers_dist_end(r, st);
   if (err == I2M_OK) err = i2m_par_agree(par, end);

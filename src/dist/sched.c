@@ -278,6 +278,19 @@ uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out)
   return pick_tasks(S, rank, max, out, total, INT64_MAX, true);
 }
 
+uint32_t sched_pick_held(sched_t *S, int rank, uint32_t max, sched_task_t *out)
+{
+  const int64_t total = held_tets(S);
+  return pick_tasks(S, rank, max, out, total, -1, false); /* (a cap below 0: no fetch is within it) */
+}
+
+bool sched_in_flight(const sched_t *S)
+{
+  for (int r = 0; r < S->nranks; r++)
+    if (S->inflight[r]) return true;
+  return false;
+}
+
 void sched_feedback(sched_t *S, int rank, const sched_task_t *tasks, uint32_t ntasks, const sched_cell_t *cells,
                     uint32_t ncells)
 {
@@ -306,8 +319,7 @@ bool sched_has_points(const sched_t *S)
 
 bool sched_busy(const sched_t *S)
 {
-  for (int r = 0; r < S->nranks; r++)
-    if (S->inflight[r]) return true;
+  if (sched_in_flight(S)) return true;
   for (uint32_t c = 0; c < S->ncells; c++)
     if (S->work[c] || S->wide[c]) return true;
   return false;

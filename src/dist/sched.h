@@ -91,6 +91,12 @@ bool sched_runnable(const sched_t *S, sched_task_t t);
  *  task comes alone. */
 uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out);
 
+/** As sched_pick, but only tasks whose whole block `rank` holds (nothing fetched). */
+uint32_t sched_pick_held(sched_t *S, int rank, uint32_t max, sched_task_t *out);
+
+/** Does any rank run tasks? */
+bool sched_in_flight(const sched_t *S);
+
 /** Could a waiting rank other than `rank` run a task now, fetching no more than
  *  SCHED_HOLD_SHARE times its share of the tets? */
 bool sched_other_could_run(sched_t *S, int rank);

@@ -952,6 +952,38 @@ static void test_move_worth(void)
   sched_free(&S);
 }
 
+/* sched_pick_held: only tasks whose whole block the rank holds, even on a stall (every other
+ * rank waiting, nothing in flight), and sched_in_flight. */
+static void test_pick_held(void)
+{
+  const int32_t n[3] = {8, 8, 8};
+  sched_t S;
+  sched_task_t t[4];
+  CU_ASSERT_FATAL(sched_init(&S, n, 2) == I2M_OK);
+  for (uint32_t c = 0; c < S.ncells; c++) {
+    S.holder[c] = c % 8 < 4 ? 0 : 1; /* (x < 4: rank 0) */
+    S.tets[c] = 100;
+  }
+  const uint32_t inside = 1 + 8 * (3 + 8 * 3), border = 3 + 8 * (3 + 8 * 3); /* (x = 1 and x = 3) */
+  S.work[border] = 50; /* the busiest, but its block reaches x = 4 */
+  S.work[inside] = 1;
+  S.waiting[1] = true; /* a stall: sched_pick would fetch */
+  CU_ASSERT(!sched_in_flight(&S));
+  CU_ASSERT_EQUAL_FATAL(sched_pick_held(&S, 0, 4, t), 1);
+  CU_ASSERT(t[0].cell == inside && !t[0].wide);
+  CU_ASSERT(sched_in_flight(&S));
+  CU_ASSERT_EQUAL(sched_pick_held(&S, 0, 4, t), 0); /* the border task would fetch (and its block is locked) */
+  sched_task_t done = {inside, false};
+  sched_feedback(&S, 0, &done, 1, NULL, 0);
+  S.work[inside] = 0;
+  CU_ASSERT(!sched_in_flight(&S));
+  CU_ASSERT_EQUAL(sched_pick_held(&S, 0, 4, t), 0);
+  CU_ASSERT_EQUAL(sched_pick_held(&S, 1, 4, t), 0);
+  CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 0, 4, t), 1); /* (a stall: it may fetch) */
+  CU_ASSERT(t[0].cell == border);
+  sched_free(&S);
+}
+
 static void test_best_rank_ties(void)
 {
   const int32_t n[3] = {3, 3, 3};
@@ -1105,6 +1137,7 @@ static const test_case_t tests[] = {
     {"sched_wide_list", test_wide_list},
     {"busy, wide tasks alone, blocks apart, by hand", test_busy_by_hand},
     {"fetching only for work worth the tets, or on a stall, by hand", test_move_worth},
+    {"sched_pick_held: no fetch, even on a stall", test_pick_held},
     {"sched_best_rank and its ties", test_best_rank_ties},
     {"sched_balance by hand", test_balance_by_hand},
     {"sched_balance on random drifts, 2-5 ranks: legal moves, the bound or no move left", test_balance_random},

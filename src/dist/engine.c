@@ -1052,6 +1052,10 @@ i2m_err_t i2m_dist_perturb_slivers(const i2m_par_t *par, i2m_refine_t *r, const 
     }
     E.held_only = false;
   }
+  i2m_debug("slivers: this rank's tasks %lld, meshing %.2f s, communication %.2f s (waiting %.2f, packing %.2f, "
+            "joining %.2f, dropping %.2f), idle %.2f s, %lld submeshes in (%.1f MB)",
+            (long long)E.fig.tasks, E.fig.meshing, E.fig.comm, E.fig.wait_data, E.fig.pack, E.fig.unpack, E.fig.drop,
+            E.fig.idle, (long long)E.fig.tiles_in, (double)E.fig.bytes_in / 1e6);
   const i2m_err_t end = i2m_refine_slivers_dist_end(r, st);
   if (err == I2M_OK) err = i2m_par_agree(par, end);
   reduce_sliver_stats(par, st);

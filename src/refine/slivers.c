@@ -1426,13 +1426,13 @@ i2m_err_t i2m_refine_slivers_dist_prepare(i2m_refine_t *r, const uint32_t *tiles
  * next round.  (Only those of its own tile: the liver at 2 ranks left 939-988 slivers to the
  * next global round, 185-195 tasks; with the zone's, 332-351 and 126-145.  Its first list's
  * slivers left tried again too: no more moves kept, in the task or in the next round.) */
-static i2m_err_t born_slivers(const i2m_refine_t *r, const perturb_t *P, sliver_list_t *L)
+static i2m_err_t born_slivers(const i2m_refine_t *r, const perturb_t *P, uint32_t born0, sliver_list_t *L)
 {
   const i2m_dt_t *dt = r->dt;
   const i2m_refine_worker_t *w = P->w;
   const double cos_bound = cos(r->slivers->bound * (I2M_PI / 180.0));
   L->n = 0;
-  for (uint32_t i = 0; i < w->nborn; i++) {
+  for (uint32_t i = born0; i < w->nborn; i++) { /* (from this task's first: a job may hold two) */
     const uint32_t t = w->born[i].t;
     if (i2m_dt_stamp(dt, t) != w->born[i].meta || !tet_kept(dt, t)) continue;
     double c[3];
@@ -1455,10 +1455,8 @@ static i2m_err_t update_caches(i2m_refine_t *r, perturb_t *P, uint32_t born0, bo
   const i2m_refine_worker_t *w = P->w;
   uint32_t ids[125];
   const uint32_t nb = tiles_of_block(r->tiling, w->ctx.block, ids);
-  if (moved_in_place) {
+  if (moved_in_place)
     for (uint32_t i = 0; i < nb; i++) S->cache_ok[ids[i]] = 0;
-    return I2M_OK;
-  }
   for (uint32_t i = 0; i < nb; i++) {
     if (!S->cache_ok[ids[i]]) continue;
     sliver_list_t *L = &S->cache[ids[i]];
@@ -1468,7 +1466,7 @@ static i2m_err_t update_caches(i2m_refine_t *r, perturb_t *P, uint32_t born0, bo
     L->n = n;
   }
   const double cos_bound = cos(S->bound * (I2M_PI / 180.0));
-  for (uint32_t i = w->nborn > born0 ? born0 : w->nborn; i < w->nborn; i++) {
+  for (uint32_t i = born0; i < w->nborn; i++) {
     const uint32_t t = w->born[i].t;
     if (i2m_dt_stamp(dt, t) != w->born[i].meta || !tet_kept(dt, t)) continue;
     const uint32_t id = tiles_tile_of_tet(r, t);
@@ -1505,7 +1503,7 @@ static i2m_err_t tile_slivers_dist(i2m_refine_t *r, int k, uint32_t id)
   tiles_bind(P->w, id, false);
   i2m_err_t err = treat_all(P, L->a, L->n);
   for (int inner = 1; err == I2M_OK && inner < TASK_ROUNDS; inner++) {
-    err = born_slivers(r, P, &P->inner);
+    err = born_slivers(r, P, born0, &P->inner);
     if (err != I2M_OK || P->inner.n == 0) break;
     err = treat_all(P, P->inner.a, P->inner.n);
   }

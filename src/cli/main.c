@@ -25,10 +25,10 @@ typedef struct {
   double t0;
 } run_t;
 
-/* The pipeline's options from the command line's. */
 /* Does each rank write its own piece (-o NAME.pvtu), rather than rank 0 one stitched file? */
 static bool writes_pieces(const cli_options_t *o) { return i2m_format_from_path(o->output) == I2M_FORMAT_PVTU; }
 
+/* The pipeline's options from the command line's. */
 static i2m_pipeline_opts_t pipeline_opts(const cli_options_t *o)
 {
   return (i2m_pipeline_opts_t){.params = o->params,

@@ -969,8 +969,8 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
   rep->fine_seconds = i2m_par_max(par, i2m_wtime() - E.t0);
   i2m_refine_stats_t st;
   i2m_refine_get_stats(r, &st);
-  E.fig.insertions = st.insertions;
   i2m_debug("dist: %lld elements handed on were found to have nothing to do", (long long)st.judged);
+  E.fig.insertions = st.insertions;
   E.fig.removals = st.removals;
   E.fig.tets = i2m_dt_count_tets(i2m_refine_dt(r));
   E.fig.peak_rss = (double)i2m_peak_rss_bytes();

@@ -363,8 +363,8 @@ void tiles_bind(i2m_refine_worker_t *w, uint32_t id, bool wide);
 void tiles_unbind(i2m_refine_worker_t *w);
 /** The tiles of block b (at most 125: a wide task's), into out; returns their number. */
 uint32_t tiles_of_block(const tiling_t *g, const i2m_dt_block_t *b, uint32_t out[125]);
-/** A tile arrived (dist): its count of slivers, if a pass keeps one, is not known any more. */
-void slivers_forget_count(i2m_refine_t *r, uint32_t id);
+/** A tile arrived (dist): its list of slivers, if a pass keeps one, is not known any more. */
+void slivers_forget_tile(i2m_refine_t *r, uint32_t id);
 /** A tile's lists in an order of their own: stale entries dropped, elements whose tet the zone
  *  cannot hold moved to the wide lists, each list sorted by tet key, removals by global id.
  *  After bridge points went in: one process inserts them all at once, ranks tile by tile. */

@@ -1354,7 +1354,7 @@ static void caches_now(i2m_refine_t *r)
   }
 }
 
-void slivers_forget_count(i2m_refine_t *r, uint32_t id)
+void slivers_forget_tile(i2m_refine_t *r, uint32_t id)
 {
   if (r->slivers && r->slivers->cache_ok) r->slivers->cache_ok[id] = 0;
 }

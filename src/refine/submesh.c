@@ -867,7 +867,7 @@ i2m_err_t i2m_refine_unpack(i2m_refine_t *r, const void *buf, size_t len, uint32
   tl->seq = h.seq;
   tl->grant = h.grant;
   tl->held = true;
-  slivers_forget_count(r, h.tile);
+  slivers_forget_tile(r, h.tile);
   if (tile) *tile = h.tile;
   return I2M_OK;
 }

@@ -904,17 +904,22 @@ static void test_busy_by_hand(void)
   sched_free(&S);
 }
 
+/* A scheduler over 8 x 8 x 8 cells for two ranks, each cell with `tets` tets. */
+static void two_ranks_cube(sched_t *S, int64_t tets)
+{
+  const int32_t n[3] = {8, 8, 8};
+  CU_ASSERT_FATAL(sched_init(S, n, 2) == I2M_OK);
+  for (uint32_t c = 0; c < S->ncells; c++) S->tets[c] = tets;
+}
+
 /* A task fetches data only for work worth it (SCHED_MOVE_WORTH), unless the run would stall. */
 static void test_move_worth(void)
 {
-  const int32_t n[3] = {8, 8, 8};
   sched_t S;
   sched_task_t t[4];
-  CU_ASSERT_FATAL(sched_init(&S, n, 2) == I2M_OK);
-  for (uint32_t c = 0; c < S.ncells; c++) {
-    S.holder[c] = 1; /* rank 1 holds everything, and runs a task (no block locked here) */
-    S.tets[c] = 1000;
-  }
+  two_ranks_cube(&S, 1000);
+  for (uint32_t c = 0; c < S.ncells; c++) /* rank 1 holds everything, and runs a task (no block locked here) */
+    S.holder[c] = 1;
   S.inflight[1] = 1;
   const int64_t fetch = 8 * 1001; /* cell 0's block: the corner's 8 cells, each weighing one more */
   S.work[0] = (int64_t)ceil((double)fetch / SCHED_MOVE_WORTH) - 1;
@@ -936,11 +941,9 @@ static void test_move_worth(void)
   sched_free(&S);
   /* a stall where the asking rank would hold over SCHED_HOLD_SHARE times its share: the waiting
    * one, which would not, gets the task */
-  CU_ASSERT_FATAL(sched_init(&S, n, 2) == I2M_OK);
-  for (uint32_t c = 0; c < S.ncells; c++) {
-    S.holder[c] = c < 400 ? 0 : 1; /* rank 0: 400 cells of 1000 tets, above 1.3 / 2 of them all */
-    S.tets[c] = 1000;
-  }
+  two_ranks_cube(&S, 1000);
+  for (uint32_t c = 0; c < S.ncells; c++) /* rank 0: 400 cells of 1000 tets, above 1.3 / 2 of them all */
+    S.holder[c] = c < 400 ? 0 : 1;
   const uint32_t across = (6 * 8 + 1) * 8 + 3; /* (3, 1, 6): its block has cells of both ranks */
   S.work[across] = 100000;
   S.waiting[1] = true;
@@ -956,14 +959,10 @@ static void test_move_worth(void)
  * rank waiting, nothing in flight), and sched_in_flight. */
 static void test_pick_held(void)
 {
-  const int32_t n[3] = {8, 8, 8};
   sched_t S;
   sched_task_t t[4];
-  CU_ASSERT_FATAL(sched_init(&S, n, 2) == I2M_OK);
-  for (uint32_t c = 0; c < S.ncells; c++) {
-    S.holder[c] = c % 8 < 4 ? 0 : 1; /* (x < 4: rank 0) */
-    S.tets[c] = 100;
-  }
+  two_ranks_cube(&S, 100);
+  for (uint32_t c = 0; c < S.ncells; c++) S.holder[c] = c % 8 < 4 ? 0 : 1; /* (x < 4: rank 0) */
   const uint32_t inside = 1 + 8 * (3 + 8 * 3), border = 3 + 8 * (3 + 8 * 3); /* (x = 1 and x = 3) */
   S.work[border] = 50; /* the busiest, but its block reaches x = 4 */
   S.work[inside] = 1;

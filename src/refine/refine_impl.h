@@ -370,6 +370,57 @@ void slivers_forget_tile(i2m_refine_t *r, uint32_t id);
  *  After bridge points went in: one process inserts them all at once, ranks tile by tile. */
 void tiles_canonical(i2m_refine_t *r, uint32_t id);
 void tiles_canonical_all(i2m_refine_t *r);
+
+/* ---- regions (regions.c): does a local change keep each tissue's connections? ---- */
+
+/** A port of a region: a boundary face (its sorted vertex slots) whose tet inside and tet
+ *  across (slot `across`) carry the same label, with the inside tet's piece; `shared` when
+ *  that piece has another port. */
+typedef struct {
+  uint32_t k[3], piece, across;
+  bool shared;
+} region_port_t;
+
+/** A region summed up: its ports, the nodes its pieces are numbered among, and the number of
+ *  its pieces (of labels other than 0) without a port. */
+typedef struct {
+  region_port_t *port;
+  uint32_t nport, cap_port, nnodes, portless;
+} region_t;
+
+/** Scratch space of the region functions (one per thread). */
+typedef struct {
+  uint32_t *key, *val, *stamp_of, cap, stamp; /* tet slot -> node */
+  uint32_t *parent, cap_parent;
+  uint32_t *count, cap_count;
+  uint16_t *label;
+  bool *labelled;
+  uint32_t cap_labelled;
+  const region_port_t *port_key; /* after's ports, by key (region_keeps) */
+  uint32_t *port_at, *port_stamp, cap_pk, pk_stamp;
+  uint32_t *failed, nfailed, cap_failed; /* region_keeps: before's pieces whose ports it found apart */
+} region_scratch_t;
+
+/** The label of each of the n live tets, or -1 when they differ (or n is 0). */
+int region_uniform_label(const i2m_dt_t *dt, const uint32_t *tets, uint32_t n);
+/** The region of the n live tets (distinct slots), with their labels now, or each with
+ *  label as_label when that is not negative (the region before a change that held tets of
+ *  that one label, from the live tets that fill it after the change, or before). */
+i2m_err_t region_of_tets(region_scratch_t *S, const i2m_dt_t *dt, const uint32_t *tets, uint32_t n, int as_label,
+                         region_t *R);
+/** Region R (summed up earlier: its tets are gone, replaced by the `hole` tets that fill it)
+ *  grown by the n live tets `extra` around it, into *out. */
+i2m_err_t region_grow(region_scratch_t *S, const i2m_dt_t *dt, const region_t *R, const uint32_t *extra, uint32_t n,
+                      const uint32_t *hole, uint32_t nhole, region_t *out);
+/** Does `after`, whose tets fill the region of `before` anew, join every two tets of a label
+ *  just outside it that `before`'s tets of that label joined (through its tets, or through
+ *  those tets and their neighbours of that label outside; dt NULL: through its tets only),
+ *  with no more portless pieces?  In *keeps.  When only ports are apart, S->failed lists
+ *  the pieces of `before` whose ports were (S->nfailed of them). */
+i2m_err_t region_keeps(region_scratch_t *S, const i2m_dt_t *dt, const region_t *before, const region_t *after,
+                       bool *keeps);
+void region_free(region_t *R);
+void region_scratch_free(region_scratch_t *S);
 /** Dist: bridge point p joins tile id's work (its task inserts it first). */
 i2m_err_t tiles_add_point(i2m_refine_t *r, uint32_t id, const i2m_bridge_point_t *p, bool wide);
 /** Is world point x in the zone of the worker's tile (always, without a tile)? */

@@ -14,7 +14,9 @@
  * closest point of its own interface patch to a random nearby point, so it stays on the
  * interface: the worst slivers are flat tets of four surface vertices on a planar stretch of
  * voxel faces (four nearly cocircular points), which only such a move can lift.  Every rule
- * holds after every kept move, so every guarantee of refinement holds at the end.  A last
+ * holds after every kept move, so every guarantee of refinement holds at the end; and no
+ * change may cut a tissue's path of tets through the region it changes (regions.c), unless a
+ * way round is found nearby, so every tissue the component rule made one piece stays one.  A last
  * stage treats the tets with too wide an angle too (tet_badness), keeping only changes whose
  * output tets are within both bounds.
  *
@@ -38,11 +40,12 @@
 #define REACH 0.5
 #define WIDE_MOVES 32      /* in a wide round (after a round that kept no move): more, and farther */
 #define WIDE_REACH 0.7
-#define ROUNDS 20          /* rounds over the slivers left (later ones are short) */
+#define ROUNDS 40          /* rounds over the slivers left (later ones are short) */
 #define WALK_STEPS 64      /* a target farther than this from the vertex's old star: deferred */
 #define FIRST_STAGE 5.0    /* degrees: a higher bound is reached after the slivers below this */
 #define WATCH_MARGIN 5.0   /* degrees: the tets watched have an angle below the bound plus this */
 #define TASK_ROUNDS 4      /* dist: rounds of a task over its tile's slivers (see tile_slivers_dist) */
+#define WAY_ROUND 512      /* tets a search for a way round a change's cut may visit */
 
 /* A sliver, with its vertices' global ids in increasing order (the order of the work). */
 typedef struct {
@@ -86,6 +89,17 @@ typedef struct {
   int64_t tried, kept, in_place, in_place_kept; /* in_place: the moves tried without a removal */
   int64_t inserted;                         /* the points added (kept insertions) */
   double trial_floor;                       /* the trial under way: its floor (trial_accept) */
+  /* the change under way's region before and after it (regions.c): a vertex's star as it was
+   * before its removal, and the tets a trial's cavity took beyond the hole */
+  region_t star_before, was, now;
+  const region_t *before;                   /* star_before or was */
+  int before_label, star_label;             /* >= 0: the region held tets of this label only
+                                               (summed up when needed, from the tets after) */
+  uint32_t *queue, cap_queue;               /* the search for a way round a cut */
+  uint32_t *extra, nextra, cap_extra;       /* a trial's cavity tets beyond the hole; after a
+                                               change, its live tets (alive_changed) */
+  region_scratch_t regions;
+  int64_t cut;                              /* changes refused as they would cut a tissue's path */
 } perturb_t;
 
 struct sliver_pass {
@@ -432,6 +446,93 @@ static i2m_dt_status_t put_in(perturb_t *P, const double p[3], i2m_gidx_t gid, u
   return note_created(P, label) == I2M_OK ? I2M_DT_OK : I2M_DT_FAILED;
 }
 
+/* The changed tets that are alive, each once (a slot the trial took again is listed twice),
+ * into P->extra. */
+static i2m_err_t alive_changed(perturb_t *P)
+{
+  const i2m_dt_t *dt = P->w->r->dt;
+  I2M_CALL(seen_clear(P, P->nchanged + 1));
+  I2M_CALL(grow_list(&P->extra, &P->cap_extra, P->nchanged));
+  P->nextra = 0;
+  for (uint32_t k = 0; k < P->nchanged; k++) {
+    const uint32_t t = P->changed[k];
+    if (i2m_dt_alive(dt, t) && seen_add(P, t)) P->extra[P->nextra++] = t;
+  }
+  return I2M_OK;
+}
+
+/* Are the tets across the ports of `before`'s piece (the tissue's tets just outside the region
+ * that its tets joined) still joined, now that the change is in, by a path of their label
+ * found within WAY_ROUND tets of the first (inside the zone and the block: the tets beyond
+ * may be changing)? */
+static i2m_err_t way_round(perturb_t *P, const region_t *before, uint32_t piece, bool *joined)
+{
+  const i2m_refine_worker_t *w = P->w;
+  const i2m_dt_t *dt = w->r->dt;
+  I2M_CALL(grow_list(&P->extra, &P->cap_extra, before->nport)); /* (the after tets are no longer needed) */
+  uint32_t *targets = P->extra, left = 0;
+  for (uint32_t p = 0; p < before->nport; p++) {
+    if (before->port[p].piece != piece) continue;
+    bool again = false;
+    for (uint32_t q = 0; q < left && !again; q++) again = targets[q] == before->port[p].across;
+    if (!again) targets[left++] = before->port[p].across;
+  }
+  const uint32_t ntargets = left, start = targets[0], label = tinfo(dt, start)->label;
+  I2M_CALL(seen_clear(P, WAY_ROUND + 4));
+  I2M_CALL(grow_list(&P->queue, &P->cap_queue, WAY_ROUND + 4));
+  uint32_t n = 0;
+  P->queue[n++] = start;
+  seen_add(P, start);
+  left--;
+  for (uint32_t head = 0; head < n && left > 0; head++) {
+    const uint32_t t = P->queue[head];
+    for (int j = 0; j < 4 && left > 0 && n < WAY_ROUND; j++) {
+      const uint32_t nb = dt->tn[4 * (size_t)t + j];
+      if (nb >= I2M_DT_REMOTE || tinfo(dt, nb >> 2)->label != label || !face_in_zone(w, dt, t, j)) continue;
+      if (w->ctx.block && !i2m_dt_block_holds(dt, w->ctx.block, nb >> 2)) continue;
+      if (!seen_add(P, nb >> 2)) continue;
+      P->queue[n++] = nb >> 2;
+      for (uint32_t q = 1; q < ntargets; q++) left -= targets[q] == nb >> 2;
+    }
+  }
+  *joined = left == 0;
+  return I2M_OK;
+}
+
+/* Do the changed tets (labelled) keep every tissue's connections through the region they
+ * fill, as it was before the change (P->before, or P->before_label)?  A region of one label
+ * before and after is one piece of it both times.  Tets outside that its tets joined and
+ * the new ones do not may be joined farther out (way_round). */
+static i2m_err_t connections_kept(perturb_t *P, bool *keeps)
+{
+  const i2m_dt_t *dt = P->w->r->dt;
+  I2M_CALL(alive_changed(P));
+  *keeps = true;
+  if (P->before_label >= 0 && region_uniform_label(dt, P->extra, P->nextra) == P->before_label) return I2M_OK;
+  I2M_CALL(region_of_tets(&P->regions, dt, P->extra, P->nextra, -1, &P->now));
+  if (P->before_label >= 0) { /* (the same region, its boundary faces the same) */
+    I2M_CALL(region_of_tets(&P->regions, dt, P->extra, P->nextra, P->before_label, &P->was));
+    P->before = &P->was;
+  }
+  I2M_CALL(region_keeps(&P->regions, dt, P->before, &P->now, keeps));
+  if (*keeps || P->regions.nfailed == 0) return I2M_OK; /* (nfailed 0: a new portless piece) */
+  for (uint32_t f = 0; f < P->regions.nfailed; f++) {
+    I2M_CALL(way_round(P, P->before, P->regions.failed[f], keeps));
+    if (!*keeps) break;
+  }
+  return I2M_OK;
+}
+
+/* connections_kept: 1 yes, 0 no (also when the scratch space could not grow: a change
+ * refused is never wrong). */
+static int keeps_connections(perturb_t *P)
+{
+  bool keeps;
+  if (connections_kept(P, &keeps) != I2M_OK) return 0;
+  P->cut += !keeps;
+  return keeps;
+}
+
 /* Do the changed tets pass every rule, the output tets among them with their smallest
  * dihedral angle above the worst of the star's output tets (their largest cosine below
  * floor_cos)?  1 yes, 0 no, -1 the rules cannot tell inside the zone.  With angles_seen, the
@@ -456,6 +557,8 @@ static int changed_ok(perturb_t *P, double floor_cos, bool angles_seen, uint32_t
   }
   for (uint32_t k = unlabelled; k < P->nchanged; k++)
     if (i2m_dt_alive(dt, P->changed[k])) label_tet(P->w->r, P->changed[k]);
+  const int joined = keeps_connections(P);
+  if (joined <= 0) return joined;
   for (uint32_t k = 0; k < P->nchanged; k++) {
     const uint32_t t = P->changed[k];
     if (!i2m_dt_alive(dt, t)) continue;
@@ -526,6 +629,10 @@ static int move_in_place(perturb_t *P, uint32_t v, const double x0[3], const dou
   }
   P->tried++;
   P->in_place++;
+  P->before_label = region_uniform_label(dt, P->changed, P->nchanged);
+  P->before = &P->was;
+  if (P->before_label < 0 && region_of_tets(&P->regions, dt, P->changed, P->nchanged, -1, &P->was) != I2M_OK)
+    return MOVE_ERROR;
   for (uint32_t k = 0; k < P->nchanged; k++) {
     P->saved[2 * k] = tinfo(dt, P->changed[k])->label;
     label_tet(r, P->changed[k]);
@@ -570,6 +677,11 @@ static void mover_begin(const i2m_refine_t *r, uint32_t v, mover_t *M)
  * result: MOVE_KEPT here means only that it is out. */
 static int mover_take_out(perturb_t *P, mover_t *M)
 {
+  const i2m_dt_t *dt = P->w->r->dt;
+  if (star_of(P, M->v) != I2M_OK) return MOVE_ERROR;
+  P->star_label = region_uniform_label(dt, P->star, P->nstar);
+  if (P->star_label < 0 && region_of_tets(&P->regions, dt, P->star, P->nstar, -1, &P->star_before) != I2M_OK)
+    return MOVE_ERROR;
   P->nchanged = 0;
   const i2m_dt_status_t st = take_out(P, M->v);
   if (st == I2M_DT_FAILED) return MOVE_ERROR;
@@ -590,12 +702,49 @@ static int mover_take_out(perturb_t *P, mover_t *M)
   return MOVE_KEPT;
 }
 
+/* Is tet t one of the hole's (the removal's tets, P->changed[0 .. nchanged) in the hook)? */
+static bool in_hole(const perturb_t *P, uint32_t t)
+{
+  for (uint32_t k = 0; k < P->nchanged; k++)
+    if (P->changed[k] == t) return true;
+  return false;
+}
+
+/* The region an accepted trial changes, as it is before (P->before): the cavity's tets for a
+ * new point; for a vertex moved, its star before the removal, grown by the cavity's tets
+ * beyond the hole when there are any (the hole's tets were never in the mesh that counts). */
+static i2m_err_t region_before_trial(perturb_t *P, const i2m_dt_ctx_t *ctx)
+{
+  const i2m_dt_t *dt = P->w->r->dt;
+  if (!P->nchanged) {
+    P->before_label = region_uniform_label(dt, ctx->cav, ctx->ncav);
+    P->before = &P->was;
+    return P->before_label >= 0 ? I2M_OK : region_of_tets(&P->regions, dt, ctx->cav, ctx->ncav, -1, &P->was);
+  }
+  uint32_t in_cavity = 0;
+  for (uint32_t k = 0; k < P->nchanged; k++) in_cavity += i2m_dt_meta(dt, P->changed[k]) != P->hole_meta[k];
+  P->before_label = P->star_label;
+  P->before = &P->star_before;
+  if (in_cavity == ctx->ncav) return I2M_OK;
+  I2M_CALL(grow_list(&P->extra, &P->cap_extra, ctx->ncav));
+  P->nextra = 0;
+  for (uint32_t k = 0; k < ctx->ncav; k++)
+    if (!in_hole(P, ctx->cav[k])) P->extra[P->nextra++] = ctx->cav[k];
+  if (P->star_label >= 0) { /* the star summed up now, from the hole's tets that fill it */
+    I2M_CALL(region_of_tets(&P->regions, dt, P->changed, P->nchanged, P->star_label, &P->star_before));
+    P->star_label = -1;
+  }
+  P->before_label = -1;
+  P->before = &P->was;
+  return region_grow(&P->regions, dt, &P->star_before, P->extra, P->nextra, P->changed, P->nchanged, &P->was);
+}
+
 /* The insertion hook of a trial: the first test of changed_ok, on the tets the insertion would
  * leave and make, before it changes anything (most trials fail there: an insertion undone
  * costs as much again).  False when an output tet among them would not beat the floor. */
 static bool trial_accept(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
 {
-  const perturb_t *P = arg;
+  perturb_t *P = arg;
   const i2m_refine_t *r = P->w->r;
   const i2m_dt_t *dt = r->dt;
   const double *x[4];
@@ -614,7 +763,7 @@ static bool trial_accept(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
     for (int i = 0; i < 3; i++) x[i] = i2m_dt_xyz(dt, abc[i]);
     if (badness_of(r, x, NULL) >= P->trial_floor && centre_label(r, x) != 0) return false;
   }
-  return true;
+  return region_before_trial(P, ctx) == I2M_OK;
 }
 
 /* The vertex (out) at p, on trial: journaled, so that a refusal undoes it, and refused before
@@ -1067,6 +1216,12 @@ static void pass_free(i2m_refine_t *r)
     i2m_free(&P->deferred.a);
     i2m_free(&P->inner.a);
     i2m_free(&P->stale);
+    region_free(&P->star_before);
+    region_free(&P->was);
+    region_free(&P->now);
+    i2m_free(&P->extra);
+    i2m_free(&P->queue);
+    region_scratch_free(&P->regions);
   }
   i2m_free(&S->per);
   i2m_free(&S->list.a);
@@ -1279,10 +1434,13 @@ static i2m_err_t final_stats(i2m_refine_t *r, struct sliver_pass *S, double boun
   if (!(S->watching && figures_from_watch(r, bound, &S->st.min_after, &S->st.slivers_after)))
     err = collect_all(r, bound, &S->list, &S->st.min_after, &S->st.slivers_after, NULL, NULL);
   S->st.seconds = i2m_wtime() - S->t0;
-  int64_t in_place = 0, in_place_kept = 0;
-  for (int k = 0; k < r->nworkers; k++) in_place += S->per[k].in_place, in_place_kept += S->per[k].in_place_kept;
-  i2m_debug("slivers: %lld moves tried, %lld kept; in place (without a removal) %lld tried, %lld kept; %.2f s",
-            (long long)S->st.tried, (long long)S->st.kept, (long long)in_place, (long long)in_place_kept, S->st.seconds);
+  int64_t in_place = 0, in_place_kept = 0, cut = 0;
+  for (int k = 0; k < r->nworkers; k++)
+    in_place += S->per[k].in_place, in_place_kept += S->per[k].in_place_kept, cut += S->per[k].cut;
+  i2m_debug("slivers: %lld moves tried, %lld kept; in place (without a removal) %lld tried, %lld kept; %lld refused as "
+            "they would cut a tissue's path; %.2f s",
+            (long long)S->st.tried, (long long)S->st.kept, (long long)in_place, (long long)in_place_kept, (long long)cut,
+            S->st.seconds);
   return err;
 }
 

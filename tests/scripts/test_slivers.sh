@@ -5,7 +5,8 @@
 # below 5 degrees (there are thousands without the pass; i2m-check --min-dihedral 5 fails the
 # plain mesh and passes the perturbed one); the run's dihedral bands before and after the pass
 # are the checker's on the two meshes.  At 15 degrees the liver and the brain come out within
-# 15..160 degrees.  Bad values of the option get one error line.
+# 15..160 degrees, and the knee keeps each large tissue in one piece.  Bad values of the option
+# get one error line.
 set -eu
 . "$(dirname "$0")/guarantees.sh"
 IMG=$DATA/liver.inr.gz
@@ -55,6 +56,14 @@ BRAIN=$DATA/brain_kmeans_noisy.nii.gz
 "$BIN/i2m" "$BRAIN" -o "$TMP/brain.vtu" --threads 1 --sliver-angle 15 --report "$TMP/brain.json" --quiet
 check_guarantees "$TMP/brain.vtu" "$BRAIN" "$TMP/brain.json" --min-dihedral 15 --max-dihedral 160 >/dev/null ||
   { echo "FAIL: --sliver-angle 15 left a tet of the brain outside 15..160 degrees (or broke a guarantee)"; exit 1; }
+# the pass keeps each tissue in one piece: on the knee at delta 0.8 (one thread) its changes
+# cut the thin labels 41 and 46 into 2 and 3 pieces after the component rule had joined them,
+# until a change that would cut a tissue's path through its region was refused (regions.c)
+KNEE=$DATA/knee_atlas.nrrd
+"$BIN/i2m" "$KNEE" -o "$TMP/knee.vtu" --delta 0.8 --threads 1 --sliver-angle 15 --quiet 2>"$TMP/knee.err"
+"$BIN/i2m-check" "$TMP/knee.vtu" --image "$KNEE" --no-distances --require-whole 10000 --min-dihedral 15 \
+  --max-dihedral 160 >"$TMP/knee.check" ||
+  { echo "FAIL: --sliver-angle 15 split a tissue of the knee (or left a tet outside 15..160 degrees)"; grep VIOLATED "$TMP/knee.check"; exit 1; }
 for bad in -1 31 x; do
   if "$BIN/i2m" "$IMG" -o "$TMP/bad.vtu" --sliver-angle "$bad" >"$TMP/out" 2>"$TMP/err"; then
     echo "FAIL: --sliver-angle $bad was accepted"; exit 1

@@ -872,18 +872,19 @@ static void gid_taken(i2m_refine_worker_t *w)
   else w->r->slivers->seq_gid++;
 }
 
-/* A new vertex for sliver s near c: the interface point closest to c when that lies within
- * delta of it (a surface vertex of that patch), else c (a free vertex); a trial as a vertex
- * move's (try_target: a mover that is out and removed nothing), kept when the new tets pass
- * every rule and the output ones beat the floor.  A MOVE_* result. */
-static int insert_at(perturb_t *P, const sliver_t *s, const double c[3], double floor_cos)
+/* A new vertex for sliver s near c: with `snap`, the interface point closest to c when that
+ * lies within delta of it (a surface vertex of that patch: *snapped), else c (a free vertex);
+ * a trial as a vertex move's (try_target: a mover that is out and removed nothing), kept when
+ * the new tets pass every rule and the output ones beat the floor.  A MOVE_* result. */
+static int insert_at(perturb_t *P, const sliver_t *s, const double c[3], double floor_cos, bool snap, bool *snapped)
 {
   i2m_refine_worker_t *w = P->w;
   i2m_refine_t *r = w->r;
   i2m_edt_probe_t pr;
   i2m_edt_probe_world(r->edt, c, INFINITY, &pr);
   mover_t M = {0, true, {c[0], c[1], c[2]}, fresh_gid(w), I2M_VK_FREE, {false, false, 0}, s->t, 0};
-  if (isfinite(pr.d2) && pr.d2 < r->delta2) {
+  *snapped = snap && isfinite(pr.d2) && pr.d2 < r->delta2;
+  if (*snapped) {
     memcpy(M.x0, pr.z, sizeof M.x0);
     M.kind = I2M_VK_SURFACE;
     M.g = (vplace_t){true, false, patch_key(pr.pair[0], pr.pair[1])};
@@ -901,8 +902,10 @@ static int insert_at(perturb_t *P, const sliver_t *s, const double c[3], double 
 
 /* A new vertex in sliver s's circumball (insert_at): at its circumcentre, else at up to PICKS
  * random points of its picking region (the ball of PICK_RADIUS times the circumradius around
- * the circumcentre, Li-Teng), until one is kept.  A refused point costs a cavity search
- * (trial_accept), far less than a vertex move's removal.  A MOVE_* result. */
+ * the circumcentre, Li-Teng), until one is kept; in a wide round, a point put on the interface
+ * and refused is tried where it is too (a sliver of surface vertices whose every point on the
+ * interface fails may take a free one).  A refused point costs a cavity search (trial_accept),
+ * far less than a vertex move's removal.  A MOVE_* result. */
 static int try_insertion(perturb_t *P, const sliver_t *s)
 {
   tet_geom_t g;
@@ -912,12 +915,15 @@ static int try_insertion(perturb_t *P, const sliver_t *s)
   const bool wide = P->w->r->slivers->wide;
   const double reach = (wide ? WIDE_PICK_RADIUS : PICK_RADIUS) * sqrt(g.r2);
   const int picks = wide ? WIDE_PICKS : PICKS;
-  int got = insert_at(P, s, g.cc, floor_cos);
+  bool snapped;
+  int got = insert_at(P, s, g.cc, floor_cos, true, &snapped);
+  if (wide && snapped && got != MOVE_KEPT && got != MOVE_ERROR) got = insert_at(P, s, g.cc, floor_cos, false, &snapped);
   for (int k = 0; k < picks && got != MOVE_KEPT && got != MOVE_ERROR; k++) {
     double d[3];
     random_in_ball(&P->rng, d, 0.0);
     const double p[3] = {g.cc[0] + reach * d[0], g.cc[1] + reach * d[1], g.cc[2] + reach * d[2]};
-    got = insert_at(P, s, p, floor_cos);
+    got = insert_at(P, s, p, floor_cos, true, &snapped);
+    if (wide && snapped && got != MOVE_KEPT && got != MOVE_ERROR) got = insert_at(P, s, p, floor_cos, false, &snapped);
   }
   return got;
 }

@@ -900,12 +900,21 @@ static int insert_at(perturb_t *P, const sliver_t *s, const double c[3], double 
   return got;
 }
 
-/* A new vertex in sliver s's circumball (insert_at): at its circumcentre, else at up to PICKS
+/* insert_at p, snapped to the interface when near it; in a wide round, when that is refused,
+ * p where it is too (a sliver of surface vertices whose every point on the interface fails
+ * may take a free one). */
+static int insert_near(perturb_t *P, const sliver_t *s, const double p[3], double floor_cos, bool wide)
+{
+  bool snapped;
+  const int got = insert_at(P, s, p, floor_cos, true, &snapped);
+  if (!wide || !snapped || got == MOVE_KEPT || got == MOVE_ERROR) return got;
+  return insert_at(P, s, p, floor_cos, false, &snapped);
+}
+
+/* A new vertex in sliver s's circumball (insert_near): at its circumcentre, else at up to PICKS
  * random points of its picking region (the ball of PICK_RADIUS times the circumradius around
- * the circumcentre, Li-Teng), until one is kept; in a wide round, a point put on the interface
- * and refused is tried where it is too (a sliver of surface vertices whose every point on the
- * interface fails may take a free one).  A refused point costs a cavity search (trial_accept),
- * far less than a vertex move's removal.  A MOVE_* result. */
+ * the circumcentre, Li-Teng), until one is kept.  A refused point costs a cavity search
+ * (trial_accept), far less than a vertex move's removal.  A MOVE_* result. */
 static int try_insertion(perturb_t *P, const sliver_t *s)
 {
   tet_geom_t g;
@@ -915,15 +924,12 @@ static int try_insertion(perturb_t *P, const sliver_t *s)
   const bool wide = P->w->r->slivers->wide;
   const double reach = (wide ? WIDE_PICK_RADIUS : PICK_RADIUS) * sqrt(g.r2);
   const int picks = wide ? WIDE_PICKS : PICKS;
-  bool snapped;
-  int got = insert_at(P, s, g.cc, floor_cos, true, &snapped);
-  if (wide && snapped && got != MOVE_KEPT && got != MOVE_ERROR) got = insert_at(P, s, g.cc, floor_cos, false, &snapped);
+  int got = insert_near(P, s, g.cc, floor_cos, wide);
   for (int k = 0; k < picks && got != MOVE_KEPT && got != MOVE_ERROR; k++) {
     double d[3];
     random_in_ball(&P->rng, d, 0.0);
     const double p[3] = {g.cc[0] + reach * d[0], g.cc[1] + reach * d[1], g.cc[2] + reach * d[2]};
-    got = insert_at(P, s, p, floor_cos, true, &snapped);
-    if (wide && snapped && got != MOVE_KEPT && got != MOVE_ERROR) got = insert_at(P, s, p, floor_cos, false, &snapped);
+    got = insert_near(P, s, p, floor_cos, wide);
   }
   return got;
 }

@@ -399,6 +399,10 @@ typedef struct {
   const region_port_t *port_key; /* after's ports, by key (region_keeps) */
   uint32_t *port_at, *port_stamp, cap_pk, pk_stamp;
   uint32_t *failed, nfailed, cap_failed; /* region_keeps: before's pieces whose ports it found apart */
+  /* may the tet across face j of tet t (just outside a region) be read?  (NULL: always; a
+   * worker's zone: only when nobody else may be changing it) */
+  bool (*readable)(const void *arg, uint32_t t, int j);
+  const void *readable_arg;
 } region_scratch_t;
 
 /** The label of each of the n live tets, or -1 when they differ (or n is 0). */

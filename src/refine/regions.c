@@ -267,6 +267,11 @@ static uint32_t piece_after(const region_scratch_t *S, const uint32_t k[3])
   return NOT_FOUND;
 }
 
+static bool across_readable(const region_scratch_t *S, uint32_t t, int j)
+{
+  return !S->readable || S->readable(S->readable_arg, t, j);
+}
+
 /* After's pieces joined through the tets just outside: two pieces with ports into the same
  * tet, or into two tets of their label that share a face, are one (S->parent over after's
  * nodes; S's tet index maps each tet across a port to a piece). */
@@ -285,6 +290,7 @@ static i2m_err_t join_outside(region_scratch_t *S, const i2m_dt_t *dt, const reg
     const region_port_t *a = &after->port[q];
     const int label = tinfo(dt, a->across)->label;
     for (int j = 0; j < 4; j++) {
+      if (!across_readable(S, a->across, j)) continue;
       const uint32_t nb = dt->tn[4 * (size_t)a->across + j];
       if (nb >= I2M_DT_REMOTE) continue;
       const uint32_t o = index_get(S, nb >> 2);
@@ -303,6 +309,7 @@ static uint32_t reached_after(region_scratch_t *S, const i2m_dt_t *dt, const reg
   if (!dt) return p;
   if (p == NOT_FOUND) p = index_get(S, b->across);
   for (int j = 0; j < 4 && p == NOT_FOUND; j++) {
+    if (!across_readable(S, b->across, j)) continue;
     const uint32_t nb = dt->tn[4 * (size_t)b->across + j];
     if (nb < I2M_DT_REMOTE && tinfo(dt, nb >> 2)->label == tinfo(dt, b->across)->label) p = index_get(S, nb >> 2);
   }

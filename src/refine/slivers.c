@@ -461,6 +461,17 @@ static i2m_err_t alive_changed(perturb_t *P)
   return I2M_OK;
 }
 
+/* May worker w (arg) read the tet across face j of tet t?  Only when the face has a vertex in
+ * its zone and the tet lies in its block (else another thread or a rank may be changing it). */
+static bool across_readable(const void *arg, uint32_t t, int j)
+{
+  const i2m_refine_worker_t *w = arg;
+  const i2m_dt_t *dt = w->r->dt;
+  if (!face_in_zone(w, dt, t, j)) return false;
+  const uint32_t nb = dt->tn[4 * (size_t)t + j];
+  return nb < I2M_DT_REMOTE && (!w->ctx.block || i2m_dt_block_holds(dt, w->ctx.block, nb >> 2));
+}
+
 /* Are the tets across the ports of `before`'s piece (the tissue's tets just outside the region
  * that its tets joined) still joined, now that the change is in, by a path of their label
  * found within WAY_ROUND tets of the first (inside the zone and the block: the tets beyond
@@ -487,10 +498,9 @@ static i2m_err_t way_round(perturb_t *P, const region_t *before, uint32_t piece,
   for (uint32_t head = 0; head < n && left > 0; head++) {
     const uint32_t t = P->queue[head];
     for (int j = 0; j < 4 && left > 0 && n < WAY_ROUND; j++) {
+      if (!across_readable(w, t, j)) continue;
       const uint32_t nb = dt->tn[4 * (size_t)t + j];
-      if (nb >= I2M_DT_REMOTE || tinfo(dt, nb >> 2)->label != label || !face_in_zone(w, dt, t, j)) continue;
-      if (w->ctx.block && !i2m_dt_block_holds(dt, w->ctx.block, nb >> 2)) continue;
-      if (!seen_add(P, nb >> 2)) continue;
+      if (tinfo(dt, nb >> 2)->label != label || !seen_add(P, nb >> 2)) continue;
       P->queue[n++] = nb >> 2;
       for (uint32_t q = 1; q < ntargets; q++) left -= targets[q] == nb >> 2;
     }
@@ -528,6 +538,8 @@ static i2m_err_t connections_kept(perturb_t *P, bool *keeps)
 static int keeps_connections(perturb_t *P)
 {
   bool keeps;
+  P->regions.readable = across_readable;
+  P->regions.readable_arg = P->w;
   if (connections_kept(P, &keeps) != I2M_OK) return 0;
   P->cut += !keeps;
   return keeps;

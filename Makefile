@@ -304,7 +304,8 @@ check-scripts: all $(MPI_TOOLS)
 check-layers:
 	$(Q)sh tools/check_layers.sh
 
-# every image of ../shared/data at 1, 2 and 4 threads, in both modes (about twenty minutes on 2 cores)
+# every image of ../shared/data at 1, 2 and 4 threads, in both modes, and at 1 and 2 threads with
+# --sliver-angle 15 within 15..160 degrees (about thirty-five minutes on 2 cores)
 ALL_IMAGES := liver.inr.gz spine_verse009.nii.gz brain_kmeans_noisy.nii.gz vertebrae_vbseg.mha \
   knee_atlas.nrrd abdominal_atlas.nrrd head_colin27.nii.gz
 check-full: all
@@ -312,6 +313,8 @@ check-full: all
 	  I2M_TMP=$$(mktemp -d) sh tests/scripts/test_threads_real_images.sh
 	$(Q)I2M_IMAGES="$(ALL_IMAGES)" I2M_DATA="$${I2M_DATA:-../shared/data}" I2M_BIN=bin PYTHON=$(PYTHON) \
 	  I2M_TMP=$$(mktemp -d) sh tests/scripts/test_deterministic.sh
+	$(Q)I2M_IMAGES="$(ALL_IMAGES)" I2M_DATA="$${I2M_DATA:-../shared/data}" I2M_BIN=bin PYTHON=$(PYTHON) \
+	  I2M_TMP=$$(mktemp -d) sh tests/scripts/test_slivers_images.sh
 
 # the other toolchains that are installed (MPICH, clang, cc without MPI), each in its own
 # build directory, each meshing a small image (tests/builds.sh; about a minute from scratch)

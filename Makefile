@@ -305,7 +305,7 @@ check-layers:
 	$(Q)sh tools/check_layers.sh
 
 # every image of ../shared/data at 1, 2 and 4 threads, in both modes, and at 1 and 2 threads with
-# --sliver-angle 15 within 15..160 degrees (about thirty-five minutes on 2 cores)
+# --sliver-angle 15 within 15..160 degrees (about thirty minutes on 2 cores)
 ALL_IMAGES := liver.inr.gz spine_verse009.nii.gz brain_kmeans_noisy.nii.gz vertebrae_vbseg.mha \
   knee_atlas.nrrd abdominal_atlas.nrrd head_colin27.nii.gz
 check-full: all

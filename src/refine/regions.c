@@ -24,23 +24,31 @@
 
 /* ---- a set of tet slots with an index each (open addressing, cleared by a stamp) ---- */
 
-static i2m_err_t index_clear(region_scratch_t *S, uint32_t n)
+/* An empty table of at least 4 n slots (a power of two) whose entry h is current when
+ * stamp[h] is *now: the stamps, and the arrays a and b (NULL: none) beside them, grown as
+ * needed; a new stamp empties it. */
+static i2m_err_t stamped_empty(uint32_t n, uint32_t *cap, uint32_t *now, uint32_t **stamp, uint32_t **a, uint32_t **b)
 {
-  if (4 * n > S->cap) {
-    uint32_t c = S->cap ? S->cap : 256;
+  if (4 * n > *cap) {
+    uint32_t c = *cap ? *cap : 256;
     while (c < 4 * n) c *= 2;
-    I2M_CALL(i2m_realloc(c, sizeof *S->key, &S->key));
-    I2M_CALL(i2m_realloc(c, sizeof *S->val, &S->val));
-    I2M_CALL(i2m_realloc(c, sizeof *S->stamp_of, &S->stamp_of));
-    memset(S->stamp_of, 0, c * sizeof *S->stamp_of);
-    S->cap = c;
-    S->stamp = 0;
+    I2M_CALL(i2m_realloc(c, sizeof **a, a));
+    if (b) I2M_CALL(i2m_realloc(c, sizeof **b, b));
+    I2M_CALL(i2m_realloc(c, sizeof **stamp, stamp));
+    memset(*stamp, 0, c * sizeof **stamp);
+    *cap = c;
+    *now = 0;
   }
-  if (++S->stamp == 0) {
-    memset(S->stamp_of, 0, S->cap * sizeof *S->stamp_of);
-    S->stamp = 1;
+  if (++*now == 0) { /* (wrapped: every entry would look current) */
+    memset(*stamp, 0, *cap * sizeof **stamp);
+    *now = 1;
   }
   return I2M_OK;
+}
+
+static i2m_err_t index_clear(region_scratch_t *S, uint32_t n)
+{
+  return stamped_empty(n, &S->cap, &S->stamp, &S->stamp_of, &S->key, &S->val);
 }
 
 static void index_put(region_scratch_t *S, uint32_t t, uint32_t i)
@@ -232,19 +240,7 @@ static uint32_t key_hash(const uint32_t k[3])
 /* After's ports by their keys (open addressing, cleared by a stamp). */
 static i2m_err_t ports_index(region_scratch_t *S, const region_t *after)
 {
-  if (4 * after->nport > S->cap_pk) {
-    uint32_t c = S->cap_pk ? S->cap_pk : 128;
-    while (c < 4 * after->nport) c *= 2;
-    I2M_CALL(i2m_realloc(c, sizeof *S->port_at, &S->port_at));
-    I2M_CALL(i2m_realloc(c, sizeof *S->port_stamp, &S->port_stamp));
-    memset(S->port_stamp, 0, c * sizeof *S->port_stamp);
-    S->cap_pk = c;
-    S->pk_stamp = 0;
-  }
-  if (++S->pk_stamp == 0) {
-    memset(S->port_stamp, 0, S->cap_pk * sizeof *S->port_stamp);
-    S->pk_stamp = 1;
-  }
+  I2M_CALL(stamped_empty(after->nport, &S->cap_pk, &S->pk_stamp, &S->port_stamp, &S->port_at, NULL));
   S->port_key = after->port; /* (borrowed: the keys stay in after's ports) */
   const uint32_t mask = S->cap_pk - 1;
   for (uint32_t q = 0; q < after->nport; q++) {

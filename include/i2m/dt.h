@@ -252,6 +252,14 @@ i2m_dt_status_t i2m_dt_move(i2m_dt_ctx_t *ctx, uint32_t v, const double p[3]);
  *  On I2M_DT_OK ctx->newt lists the new tets and the locks are held (as for insert). */
 i2m_dt_status_t i2m_dt_remove(i2m_dt_ctx_t *ctx, uint32_t v);
 
+/** Renumbers the live tets 0 .. n-1 cell by cell, the cells of a grid over the box [lo, hi]
+ *  (the triangulation's frame) taken in Morton order, the dead slots dropped (the free list
+ *  emptied): a tet's neighbours then mostly lie in nearby slots, and the searches that follow
+ *  wait far less for memory.  Each tet keeps its vertices, adjacency, payload and generation,
+ *  in its new slot.  All contexts idle with every slot set returned; any tet slot recorded
+ *  elsewhere names another tet afterwards. */
+i2m_err_t i2m_dt_sort_tets(i2m_dt_t *dt, const double lo[3], const double hi[3]);
+
 /** Reserves slots for a context's (or a tile's) slot set: dead slots from the shared free
  *  lists first, then a fresh range, so that @p s holds at least ntets and nverts.  Grows the
  *  arrays when needed.  Not while any context works on the triangulation. */

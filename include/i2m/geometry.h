@@ -75,6 +75,17 @@ static inline double i2m_degrees_of_cosine(double c)
 /** Cosines of the six dihedral angles of tet abcd (same edge order as the angles). */
 void i2m_tet_dihedral_cosines(const double a[3], const double b[3], const double c[3], const double d[3],
                               double cosines[6]);
+/** The six dihedral cosines of tet abcd as fractions, cos = num / sqrt(den2) (den2 > 0 unless a
+ *  face is flat): a test against a bound needs no root or division (i2m_cosine_at_least). */
+void i2m_tet_dihedral_terms(const double a[3], const double b[3], const double c[3], const double d[3], double num[6],
+                            double den2[6]);
+
+/** Is num / sqrt(den2) >= f?  (Squares compared, signs first.) */
+static inline bool i2m_cosine_at_least(double num, double den2, double f)
+{
+  if (f > 0) return num >= 0 && num * num >= f * f * den2;
+  return num >= 0 || num * num <= f * f * den2;
+}
 
 /** Circumcentre and squared circumradius of triangle abc (in its plane). */
 int i2m_tri_circumcenter(const double a[3], const double b[3], const double c[3], double cc[3],

@@ -114,30 +114,53 @@ double i2m_tet_radius_edge(const double a[3], const double b[3], const double c[
   return sqrt(r2 / i2m_tet_min_edge2(a, b, c, d));
 }
 
-void i2m_tet_dihedral_cosines(const double a[3], const double b[3], const double c[3], const double d[3],
-                              double cosines[6])
+/* The face normals of tet abcd, not normalised (outward for a positive tet), face k opposite
+ * vertex k, and their squared lengths. */
+static void face_normals(const double a[3], const double b[3], const double c[3], const double d[3], double n[4][3],
+                         double len2[4])
 {
-  /* face normals (outward for a positive tet), face k opposite vertex k */
   const double *p[4] = {a, b, c, d};
   static const int fv[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-  double n[4][3];
   for (int f = 0; f < 4; f++) {
     double e1[3], e2[3];
     i2m_sub3(p[fv[f][1]], p[fv[f][0]], e1);
     i2m_sub3(p[fv[f][2]], p[fv[f][0]], e2);
     i2m_cross3(e1, e2, n[f]);
-    const double l = sqrt(i2m_dot3(n[f], n[f]));
+    len2[f] = i2m_dot3(n[f], n[f]);
+  }
+}
+
+/* The dihedral angle at edge (i,j) is between the faces opposite the other two vertices:
+ * edges ab, ac, ad, bc, bd, cd <-> face pairs (2,3), (1,3), (1,2), (0,3), (0,2), (0,1). */
+static const int EDGE_FACES[6][2] = {{2, 3}, {1, 3}, {1, 2}, {0, 3}, {0, 2}, {0, 1}};
+
+void i2m_tet_dihedral_cosines(const double a[3], const double b[3], const double c[3], const double d[3],
+                              double cosines[6])
+{
+  double n[4][3], len2[4];
+  face_normals(a, b, c, d, n, len2);
+  for (int f = 0; f < 4; f++) {
+    const double l = sqrt(len2[f]);
     if (l > 0) {
       const double inv = 1.0 / l; /* (one division, not three) */
       for (int k = 0; k < 3; k++) n[f][k] *= inv;
     }
   }
-  /* the dihedral angle at edge (i,j) is between the faces opposite the other two vertices:
-   * edges ab, ac, ad, bc, bd, cd <-> face pairs (2,3), (1,3), (1,2), (0,3), (0,2), (0,1) */
-  static const int fp[6][2] = {{2, 3}, {1, 3}, {1, 2}, {0, 3}, {0, 2}, {0, 1}};
   for (int e = 0; e < 6; e++) {
-    double cs = -i2m_dot3(n[fp[e][0]], n[fp[e][1]]);
+    double cs = -i2m_dot3(n[EDGE_FACES[e][0]], n[EDGE_FACES[e][1]]);
     cosines[e] = cs > 1 ? 1 : cs < -1 ? -1 : cs;
+  }
+}
+
+void i2m_tet_dihedral_terms(const double a[3], const double b[3], const double c[3], const double d[3], double num[6],
+                            double den2[6])
+{
+  double n[4][3], len2[4];
+  face_normals(a, b, c, d, n, len2);
+  for (int e = 0; e < 6; e++) {
+    const int i = EDGE_FACES[e][0], j = EDGE_FACES[e][1];
+    num[e] = -i2m_dot3(n[i], n[j]);
+    den2[e] = len2[i] * len2[j];
   }
 }
 

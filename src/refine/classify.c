@@ -35,6 +35,20 @@ int centre_label(const i2m_refine_t *r, const double *const x[4])
   return isfinite(g.r2) ? i2m_edt_label_k(r->edt, g.u, g.vox) : 0; /* (flat: 0, as tet_probe says) */
 }
 
+static bool in_box(const i2m_dt_t *dt, const double p[3]);
+static bool volume_bad_at(const i2m_refine_t *r, const double *const x[4], const double cc[3], double r2, int lab);
+
+int centre_label_volume(const i2m_refine_t *r, const double *const x[4], bool *volume_fires)
+{
+  tet_geom_t g;
+  centre_of(r, x, &g);
+  *volume_fires = false;
+  if (!isfinite(g.r2)) return 0;
+  const int label = i2m_edt_label_k(r->edt, g.u, g.vox);
+  *volume_fires = label != 0 && in_box(r->dt, g.cc) && volume_bad_at(r, x, g.cc, g.r2, label);
+  return label;
+}
+
 void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t *g)
 {
   const i2m_dt_t *dt = r->dt;
@@ -77,16 +91,20 @@ static void local_bounds(const i2m_refine_t *r, const double c[3], int lab, doub
   *ratio = q;
 }
 
-/* R3 or R4 on an inside tet. */
+/* R3 or R4 on an inside tet with vertices x, centre cc, squared radius r2 and label index lab. */
+static bool volume_bad_at(const i2m_refine_t *r, const double *const x[4], const double cc[3], double r2, int lab)
+{
+  double size, ratio;
+  local_bounds(r, cc, lab, &size, &ratio);
+  if (r2 > size * size) return true;
+  return r2 > ratio * ratio * i2m_tet_min_edge2(x[0], x[1], x[2], x[3]);
+}
+
 static bool volume_bad(const i2m_refine_t *r, uint32_t t, const tet_geom_t *ti)
 {
-  const i2m_dt_t *dt = r->dt;
-  const uint32_t *v = dt->tv + 4 * (size_t)t;
-  double size, ratio;
-  local_bounds(r, ti->cc, ti->label, &size, &ratio);
-  if (ti->r2 > size * size) return true;
-  double l2 = i2m_tet_min_edge2(i2m_dt_xyz(dt, v[0]), i2m_dt_xyz(dt, v[1]), i2m_dt_xyz(dt, v[2]), i2m_dt_xyz(dt, v[3]));
-  return ti->r2 > ratio * ratio * l2;
+  const double *x[4];
+  tet_points(r->dt, t, x);
+  return volume_bad_at(r, x, ti->cc, ti->r2, ti->label);
 }
 
 /* Which rule of R3/R4 fires (3 or 4), for the statistics. */
@@ -117,6 +135,11 @@ static int facet_bad(const i2m_refine_worker_t *wk, uint32_t t, uint32_t i)
     if (dt->vkind[v[j]] != I2M_VK_SURFACE) return 6;
     p[k++] = i2m_dt_xyz(dt, v[j]);
   }
+  return facet_angle_bad(r, p) ? 5 : 0;
+}
+
+bool facet_angle_bad(const i2m_refine_t *r, const double *const p[3])
+{
   /* R5: smallest angle < theta  <=>  l_min^2 |u x w|^2 < sin^2(theta) |u|^2 |w|^2 |u - w|^2 */
   double u[3], w[3], x[3];
   for (int a = 0; a < 3; a++) {
@@ -130,7 +153,7 @@ static int facet_bad(const i2m_refine_worker_t *wk, uint32_t t, uint32_t i)
   double cx = u[1] * w[2] - u[2] * w[1], cy = u[2] * w[0] - u[0] * w[2], cz = u[0] * w[1] - u[1] * w[0];
   double area2 = cx * cx + cy * cy + cz * cz;
   double lmin = lu < lw ? (lu < lx ? lu : lx) : (lw < lx ? lw : lx);
-  return lmin * area2 < r->sin2_facet * lu * lw * lx ? 5 : 0;
+  return lmin * area2 < r->sin2_facet * lu * lw * lx;
 }
 
 /* Ball of t meets an interface: the closest interface point z to its centre, the patch it

@@ -403,6 +403,36 @@ void i2m_refine_sync(i2m_refine_t *r)
   for (int k = 0; k < r->nworkers; k++) i2m_dt_ctx_flush(&r->workers[k].ctx);
 }
 
+/* Does anything besides the mesh hold tet slots: a worker's bad elements or removals still to
+ * do, a tiling's lists, the dist layer's bookkeeping? */
+static bool slots_recorded(const i2m_refine_t *r)
+{
+  if (r->tiling || r->sub || r->slivers) return true;
+  for (int k = 0; k < r->nworkers; k++) {
+    const i2m_refine_worker_t *w = &r->workers[k];
+    if (w->npend || w->nborn) return true;
+    for (int l = 0; l < NLEVELS; l++)
+      if (w->q[l].n) return true;
+  }
+  return false;
+}
+
+i2m_err_t refine_sort_tets(i2m_refine_t *r)
+{
+  if (slots_recorded(r)) return I2M_OK; /* (they would name other tets) */
+  i2m_refine_sync(r);
+  pieces_invalidate(r);
+  double lo[3], hi[3]; /* (the labelled block, in the triangulation's frame) */
+  for (int a = 0; a < 3; a++) {
+    lo[a] = r->block_lo[a] - r->dt->shift[a];
+    hi[a] = r->block_hi[a] - r->dt->shift[a];
+  }
+  const double t0 = i2m_wtime();
+  const i2m_err_t err = i2m_dt_sort_tets(r->dt, lo, hi);
+  i2m_debug("tets renumbered along a Morton curve: %lld, %.2f s", (long long)i2m_dt_live_tets_quiescent(r->dt), i2m_wtime() - t0);
+  return err;
+}
+
 void i2m_refine_release_scratch(i2m_refine_t *r)
 {
   vgrid_free(&r->surf);

@@ -277,6 +277,12 @@ struct i2m_refine {
                                        that has nothing to do (tiles.c, judge_handoffs) */
 };
 
+/* refine.c */
+/** The mesh's tets renumbered along a space-filling curve (i2m_dt_sort_tets), when nothing else
+ *  records tet slots (else nothing is done): the passes after refinement wait less for
+ *  memory. */
+i2m_err_t refine_sort_tets(i2m_refine_t *r);
+
 /* classify.c */
 /** How much tet_geom asks of the image. */
 typedef enum {
@@ -294,6 +300,12 @@ void tet_probe(const i2m_refine_t *r, uint32_t t, probe_kind_t kind, tet_geom_t 
 /** The label a tet with these vertices (in this order) gets at its creation (tet_geom's with
  *  PROBE_NEW), without the rest of the probe. */
 int centre_label(const i2m_refine_t *r, const double *const x[4]);
+/** centre_label, and whether R3 or R4 fires on that tet (*volume_fires: classify_action would
+ *  insert its centre). */
+int centre_label_volume(const i2m_refine_t *r, const double *const x[4], bool *volume_fires);
+/** Does R5 want a restricted facet with these vertices (all on the interfaces) refined: has
+ *  it an angle below the facet bound? */
+bool facet_angle_bad(const i2m_refine_t *r, const double *const p[3]);
 /** The list a tet (PROBE_NEW or PROBE_CLOSEST) belongs to, or -1.  R1's spacing test looks
  *  at the tet's own vertices only: when none is near, the grid is searched when the tet is
  *  popped (most tets die before their turn). */

@@ -279,6 +279,88 @@ static void removal_case(double *xyz, size_t n, double frac, uint64_t seed)
   free(vid);
 }
 
+/* A tet's payload: a hash of its sorted global ids (it must follow the tet wherever it goes). */
+static uint32_t tet_tag(const i2m_dt_t *dt, uint32_t t)
+{
+  i2m_gidx_t g[4];
+  for (int i = 0; i < 4; i++) g[i] = i2m_dt_gid(dt, dt->tv[4 * (size_t)t + i]);
+  for (int i = 1; i < 4; i++)
+    for (int j = i; j > 0 && g[j - 1] > g[j]; j--) {
+      const i2m_gidx_t x = g[j];
+      g[j] = g[j - 1];
+      g[j - 1] = x;
+    }
+  uint64_t h = 1469598103934665603ull;
+  for (int i = 0; i < 4; i++) h = (h ^ (uint64_t)g[i]) * 1099511628211ull;
+  return (uint32_t)(h >> 17);
+}
+
+/* The mean distance between the slots of neighbouring tets. */
+static double mean_neighbour_gap(const i2m_dt_t *dt)
+{
+  double sum = 0;
+  int64_t n = 0;
+  for (uint32_t t = 0; t < i2m_dt_ntets_slots(dt); t++) {
+    if (!i2m_dt_alive(dt, t)) continue;
+    for (int i = 0; i < 4; i++) {
+      const uint32_t f = dt->tn[4 * (size_t)t + i];
+      if (f >= I2M_DT_REMOTE) continue;
+      sum += fabs((double)(f >> 2) - (double)t);
+      n++;
+    }
+  }
+  return n ? sum / (double)n : 0;
+}
+
+/* Random points, a third removed (dead slots), the tets renumbered along the Morton curve: the
+ * same valid tetrahedralization (checksum), compact (no dead slot), each payload with its tet,
+ * neighbours far closer in the arrays; and insertions after it work as before. */
+static void test_sort_tets(void)
+{
+  const size_t n = N_RANDOM / 20;
+  double *xyz = random_points(n);
+  int64_t *gid;
+  uint32_t *vid;
+  i2m_dt_t *dt = build_with_ids(xyz, n, 21, sizeof(uint32_t), &gid, &vid);
+  i2m_dt_ctx_t ctx;
+  CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
+  for (size_t i = 0; i < n; i += 3) CU_ASSERT_EQUAL_FATAL(i2m_dt_remove(&ctx, vid[i]), I2M_DT_OK);
+  i2m_dt_ctx_flush(&ctx);
+  for (uint32_t t = 0; t < i2m_dt_ntets_slots(dt); t++) {
+    const uint32_t tag = tet_tag(dt, t);
+    if (i2m_dt_alive(dt, t)) memcpy(i2m_dt_payload(dt, t), &tag, sizeof tag);
+  }
+  int64_t c0, c1;
+  const uint64_t s0 = i2m_dt_checksum(dt, &c0);
+  const double gap0 = mean_neighbour_gap(dt);
+  CU_ASSERT(dt->nfree_t > 0);
+  const double lo[3] = {0, 0, 0}, hi[3] = {10, 10, 10};
+  CU_ASSERT_FATAL(i2m_dt_sort_tets(dt, lo, hi) == I2M_OK);
+  assert_valid(dt);
+  CU_ASSERT_EQUAL(i2m_dt_checksum(dt, &c1), s0);
+  CU_ASSERT_EQUAL(c1, c0);
+  CU_ASSERT_EQUAL((int64_t)i2m_dt_ntets_slots(dt), c0); /* compact */
+  CU_ASSERT_EQUAL(dt->nfree_t, 0);
+  int moved_with = 1;
+  for (uint32_t t = 0; t < i2m_dt_ntets_slots(dt); t++) {
+    uint32_t tag;
+    memcpy(&tag, i2m_dt_payload(dt, t), sizeof tag);
+    moved_with &= tag == tet_tag(dt, t);
+  }
+  CU_ASSERT(moved_with);
+  const double gap1 = mean_neighbour_gap(dt);
+  CU_ASSERT(gap1 < gap0 / 4);
+  for (size_t i = 0; i < n; i += 3) { /* the removed points back: as built anew */
+    uint32_t v;
+    CU_ASSERT_EQUAL_FATAL(i2m_dt_insert_walk(&ctx, xyz + 3 * i, gid[i], I2M_VK_FREE, 0, &v), I2M_DT_OK);
+  }
+  i2m_dt_ctx_free(&ctx);
+  assert_as_built_anew(&dt, xyz, gid, NULL, n);
+  free(xyz);
+  free(gid);
+  free(vid);
+}
+
 static void test_remove_random(void)
 {
   size_t n = N_RANDOM / 20;
@@ -737,6 +819,7 @@ static const test_case_t cases[] = {
     {"remove random subset of random points", test_remove_random},
     {"remove random subset of a lattice", test_remove_lattice},
     {"remove every point", test_remove_everything},
+    {"tets renumbered along a Morton curve: the same mesh, compact, payloads with their tets", test_sort_tets},
     {"move random points: in place or reinserted, as if built anew", test_move_random},
     {"move lattice points: onto their places in place, by h/8 reinserted, as if built anew", test_move_lattice},
     {"large star: remove, insert again", test_large_star_remove_insert},

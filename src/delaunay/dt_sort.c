@@ -1,0 +1,118 @@
+/* Delaunay layer: the live tets renumbered along a space-filling curve.
+ *
+ * Refinement hands out slots in the order its work comes, so after it the tets next to each
+ * other in space lie anywhere in the arrays, and every step of a cavity search or a star
+ * walk waits for memory.  Renumbered cell by cell, the cells of a grid over the labelled block
+ * taken in Morton order, a tet's neighbours mostly sit in the same or nearby cache lines and
+ * pages.  A finer order inside a cell would gain little: a cell holds a few dozen tets. */
+#include "dt_impl.h"
+
+#include <string.h>
+
+#define AXIS_BITS 7                 /* 128 cells along each axis of the block */
+#define DIGIT_BITS 7                /* a counting pass per axis's worth of bits */
+#define DIGITS 3                    /* 3 x 7 = the 21 bits of a cell's code */
+#define PREFETCH 16                 /* tets ahead whose first vertex is asked for */
+
+/* x's low AXIS_BITS bits spread to every third bit. */
+static uint32_t spread3(uint32_t x)
+{
+  uint32_t s = 0;
+  for (int b = 0; b < AXIS_BITS; b++) s |= ((x >> b) & 1u) << (3 * b);
+  return s;
+}
+
+/* The Morton code of the cell of tet t's first vertex (clamped to the box [lo, hi]: the
+ * tets of the virtual box's corners go to its faces).  One vertex, not the centroid: as good an
+ * order, and a quarter of the reads. */
+static uint32_t cell_code(const i2m_dt_t *dt, uint32_t t, const double lo[3], const double scale[3])
+{
+  const double *x = i2m_dt_xyz(dt, dt->tv[4 * (size_t)t]);
+  uint32_t code = 0;
+  for (int a = 0; a < 3; a++) {
+    double u = (x[a] - lo[a]) * scale[a];
+    u = u > 0 ? u : 0; /* (NaN: 0) */
+    const uint32_t q = u < (double)((1u << AXIS_BITS) - 1) ? (uint32_t)u : (1u << AXIS_BITS) - 1;
+    code |= spread3(q) << a;
+  }
+  return code;
+}
+
+/* Sorts the live tets' (code << 32 | old slot) words a[0..n) by code: a stable counting sort
+ * of DIGIT_BITS bits at a time, least significant first, with b as scratch. */
+static void sort_by_code(uint64_t *a, uint64_t *b, uint32_t n)
+{
+  enum { R = 1u << DIGIT_BITS };
+  uint32_t count[R];
+  for (int d = 0; d < DIGITS; d++) {
+    const int shift = 32 + d * DIGIT_BITS;
+    memset(count, 0, sizeof count);
+    for (uint32_t i = 0; i < n; i++) count[(a[i] >> shift) & (R - 1)]++;
+    uint32_t sum = 0;
+    for (uint32_t r = 0; r < R; r++) {
+      const uint32_t c = count[r];
+      count[r] = sum;
+      sum += c;
+    }
+    for (uint32_t i = 0; i < n; i++) b[count[(a[i] >> shift) & (R - 1)]++] = a[i];
+    uint64_t *s = a;
+    a = b;
+    b = s;
+  }
+  _Static_assert(DIGITS % 2 == 1, "the sorted words end in the scratch: copied back below");
+  memcpy(b, a, (size_t)n * sizeof *a);
+}
+
+/* Moves each live tet's row of a per-tet array (`width` bytes per slot) to its new slot, through
+ * `rows` (n rows). */
+static void move_rows(void *array, size_t width, const uint32_t *new_of, uint32_t nt, uint32_t n, void *rows)
+{
+  unsigned char *src = array, *dst = rows;
+  for (uint32_t t = 0; t < nt; t++)
+    if (new_of[t] != I2M_DT_NONE) memcpy(dst + (size_t)new_of[t] * width, src + (size_t)t * width, width);
+  memcpy(src, dst, (size_t)n * width);
+}
+
+i2m_err_t i2m_dt_sort_tets(i2m_dt_t *dt, const double lo[3], const double hi[3])
+{
+  const uint32_t nt = i2m_dt_ntets_slots(dt);
+  uint32_t *new_of = NULL;
+  void *rows = NULL; /* a row of any per-tet array for each live tet; first the sort's words */
+  const size_t row = dt->pay_size > 4 * sizeof *dt->tv ? dt->pay_size : 4 * sizeof *dt->tv;
+  _Static_assert(4 * sizeof(uint32_t) == 2 * sizeof(uint64_t), "a row holds the sort's word and its scratch's");
+  i2m_err_t err = i2m_malloc(nt ? nt : 1, sizeof *new_of, &new_of);
+  if (err == I2M_OK) err = i2m_malloc(nt ? nt : 1, row, &rows);
+  if (err != I2M_OK) goto done; /* (nothing changed) */
+  double scale[3];
+  for (int a = 0; a < 3; a++) scale[a] = hi[a] > lo[a] ? (double)(1u << AXIS_BITS) / (hi[a] - lo[a]) : 0.0;
+  uint64_t *words = rows, *scratch = words + nt;
+  uint32_t n = 0;
+  for (uint32_t t = 0; t < nt; t++) {
+    if (t + PREFETCH < nt) I2M_PREFETCH(dt->xyzw + 4 * (size_t)dt->tv[4 * (size_t)(t + PREFETCH)]);
+    if (i2m_dt_alive(dt, t)) words[n++] = (uint64_t)cell_code(dt, t, lo, scale) << 32 | t;
+  }
+  sort_by_code(words, scratch, n);
+  for (uint32_t t = 0; t < nt; t++) new_of[t] = I2M_DT_NONE;
+  for (uint32_t k = 0; k < n; k++) new_of[(uint32_t)words[k]] = k;
+  move_rows(dt->tv, 4 * sizeof *dt->tv, new_of, nt, n, rows);
+  move_rows(dt->tn, 4 * sizeof *dt->tn, new_of, nt, n, rows);
+  if (dt->pay_size) move_rows(dt->tpay, dt->pay_size, new_of, nt, n, rows);
+  uint32_t *meta = rows; /* (each tet keeps its generation, unmarked) */
+  for (uint32_t t = 0; t < nt; t++)
+    if (new_of[t] != I2M_DT_NONE) meta[new_of[t]] = i2m_dt_meta(dt, t) & ~I2M_TM_MARK;
+  for (uint32_t k = 0; k < n; k++) atomic_store_explicit(&dt->meta[k], meta[k], memory_order_relaxed);
+  for (uint32_t t = n; t < nt; t++) atomic_store_explicit(&dt->meta[t], I2M_TM_DEAD, memory_order_relaxed);
+  for (size_t i = 0; i < 4 * (size_t)n; i++) {
+    const uint32_t f = dt->tn[i];
+    if (f < I2M_DT_REMOTE) dt->tn[i] = new_of[f >> 2] << 2 | (f & 3);
+  }
+  const uint32_t nv = i2m_dt_nverts_slots(dt);
+  for (uint32_t v = 0; v < nv; v++)
+    if (dt->vkind[v] != I2M_VK_DEAD && dt->vtet[v] < nt) dt->vtet[v] = new_of[dt->vtet[v]];
+  dt->nfree_t = 0;
+  atomic_store_explicit(&dt->nt_atomic, n, memory_order_relaxed);
+done:
+  i2m_free(&new_of);
+  i2m_free(&rows);
+  return err;
+}

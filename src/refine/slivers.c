@@ -1468,7 +1468,7 @@ static i2m_err_t pass_new(i2m_refine_t *r, double bound)
 i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
 {
   I2M_CHECK(!r->slivers, I2M_ERR_INTERNAL, "a sliver pass is already under way");
-  I2M_CALL(refine_sort_tets(r)); /* (a pass that waited for memory at every step: a tenth faster) */
+  I2M_CALL(refine_sort_tets(r)); /* (its cost is won back in the pass, then in extraction: 1.4 -> 0.8 s on the liver) */
   I2M_CALL(pass_new(r, bound));
   struct sliver_pass *S = r->slivers;
   while (S->list.n > 0 && !(S->list.a[S->list.n - 1].angle < S->bound)) /* the first stage's (sorted) */

@@ -158,6 +158,12 @@ typedef struct i2m_dt_ctx {
    *  once after a look at the new tets looks at them here instead. */
   bool (*accept)(void *arg, const struct i2m_dt_ctx *ctx, const double p[3]);
   void *accept_arg;
+  /** Or NULL (zone mode only, with `accept`): asked during the search about each boundary face
+   *  k as soon as it is known to be one (the new tet (a, b, c, p) of i2m_dt_cavity_face is then
+   *  sure to be made if the insertion goes on); false stops the search with I2M_DT_REFUSED.
+   *  ctx->nbnd_seen tells `accept` how many faces it has seen. */
+  bool (*accept_face)(void *arg, const struct i2m_dt_ctx *ctx, uint32_t k, const double p[3]);
+  uint32_t nbnd_seen;
   struct i2m_dt_journal *jr; /**< owned: that record, created on first use */
   /* statistics */
   int64_t n_insert, n_remove, n_rollback, n_created, n_killed, n_walk_steps;

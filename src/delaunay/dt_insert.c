@@ -373,6 +373,18 @@ static I2M_INLINE void prefetch_apexes(const search_t *s, uint32_t t)
   }
 }
 
+/* The boundary faces found since the last look, shown to the context's accept_face hook (a
+ * boundary face stays one: whether a tet is in conflict with p does not depend on the path
+ * that reached it).  False when the hook refuses one. */
+static I2M_NOINLINE bool faces_accepted(search_t *s)
+{
+  i2m_dt_ctx_t *ctx = s->ctx;
+  search_store(s); /* (the hook reads the context) */
+  for (; ctx->nbnd_seen < s->nbnd; ctx->nbnd_seen++)
+    if (!ctx->accept_face(ctx->accept_arg, ctx, ctx->nbnd_seen, s->p)) return false;
+  return true;
+}
+
 /* Breadth-first search of the tets whose circumballs hold p, from the seed (the first cavity
  * tet).  Every vertex met gets a local number (and, when locking, is locked); the outside
  * tets' apexes are numbered too, as the new tets' neighbours will change. */
@@ -388,6 +400,7 @@ static I2M_INLINE i2m_dt_status_t cavity_search_in(search_t *s, bool zoned, bool
     if (k + 1 < s->ncav) prefetch_apexes(s, s->cav[k + 1]);
     const i2m_dt_status_t st = faces_visit(s, k, &f, cl, zoned, locking);
     if (st != I2M_DT_OK) return st;
+    if (zoned && I2M_UNLIKELY(s->ctx->accept_face != NULL) && !faces_accepted(s)) return I2M_DT_REFUSED;
   }
   return I2M_DT_OK;
 }
@@ -773,6 +786,7 @@ i2m_dt_status_t i2m_dt_insert(i2m_dt_ctx_t *ctx, const double p[3], i2m_gidx_t g
   }
   search_t s;
   search_begin(&s, ctx, p, gid);
+  ctx->nbnd_seen = 0;
   for (uint32_t k = 0; k < s.nheld; k++) row_fill(&s, s.rows + 4 * (size_t)k, s.held[k]); /* locked before */
   i2m_dt_status_t st = cavity_seed(&s, seed, seed_meta);
   if (st == I2M_DT_OK) st = cavity_search(&s);

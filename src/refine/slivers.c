@@ -831,6 +831,8 @@ static bool rules_may_pass(perturb_t *P, const i2m_dt_ctx_t *ctx, const double p
     if (i2m_realloc(c, sizeof *P->new_label, &P->new_label) != I2M_OK) return false; /* (refused: never wrong) */
     P->cap_new_label = c;
   }
+  for (uint32_t k = 0; k < ctx->nbnd; k++) /* (the outer tets' labels: asked for now, read below) */
+    if (ctx->bnd[k].out != I2M_DT_NONE) I2M_PREFETCH(tinfo(dt, ctx->bnd[k].out >> 2));
   bool one_label = true;
   for (uint32_t k = 0; k < ctx->nbnd; k++) {
     uint32_t abc[3];
@@ -864,15 +866,26 @@ static bool rules_may_pass(perturb_t *P, const i2m_dt_ctx_t *ctx, const double p
   return true;
 }
 
+/* The new tet of a trial on face k of its cavity: false when it would be an output tet (a label
+ * at its centre) no better than the floor.  Asked during the search too (accept_face): most
+ * trials fail here, and a failure found early saves the rest of the search. */
+static bool trial_face_ok(void *arg, const i2m_dt_ctx_t *ctx, uint32_t k, const double p[3])
+{
+  const perturb_t *P = arg;
+  const i2m_refine_t *r = P->w->r;
+  uint32_t abc[3];
+  i2m_dt_cavity_face(ctx, k, abc);
+  const double *x[4] = {i2m_dt_xyz(r->dt, abc[0]), i2m_dt_xyz(r->dt, abc[1]), i2m_dt_xyz(r->dt, abc[2]), p};
+  return !(as_bad_as(r->slivers, x, P->trial_floor) && centre_label(r, x) != 0);
+}
+
 /* The insertion hook of a trial: the first test of changed_ok, on the tets the insertion would
  * leave and make, before it changes anything (most trials fail there: an insertion undone
  * costs as much again).  False when an output tet among them would not beat the floor. */
 static bool trial_accept(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
 {
   perturb_t *P = arg;
-  const i2m_refine_t *r = P->w->r;
-  const i2m_dt_t *dt = r->dt;
-  const double *x[4];
+  const i2m_dt_t *dt = P->w->r->dt;
   /* the removal's tets that stay (the list holds only them yet; a tet of this insertion's
    * cavity carries the mark, so its meta word differs from the stamp recorded) */
   for (uint32_t k = 0; k < P->nchanged; k++) {
@@ -880,13 +893,8 @@ static bool trial_accept(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
     if (i2m_dt_meta(dt, t) != P->hole_meta[k] || P->hole_cos[k] < P->trial_floor) continue;
     if (tinfo(dt, t)->label != 0) return false;
   }
-  x[3] = p;
-  for (uint32_t k = 0; k < ctx->nbnd; k++) {
-    uint32_t abc[3];
-    i2m_dt_cavity_face(ctx, k, abc);
-    for (int i = 0; i < 3; i++) x[i] = i2m_dt_xyz(dt, abc[i]);
-    if (as_bad_as(r->slivers, x, P->trial_floor) && centre_label(r, x) != 0) return false;
-  }
+  for (uint32_t k = ctx->nbnd_seen; k < ctx->nbnd; k++) /* (those the search did not show trial_face_ok) */
+    if (!trial_face_ok(P, ctx, k, p)) return false;
   if (!rules_may_pass(P, ctx, p)) {
     P->prejudged++;
     return false;
@@ -904,10 +912,12 @@ static i2m_dt_status_t put_in_trial(perturb_t *P, const mover_t *M, const double
   P->trial_kind = M->kind;
   ctx->journal = true;
   ctx->accept = trial_accept;
+  ctx->accept_face = trial_face_ok;
   ctx->accept_arg = P;
   const i2m_dt_status_t st = put_in(P, p, M->gid, M->kind, M->g, M->start, false, moved);
   ctx->journal = false;
   ctx->accept = NULL;
+  ctx->accept_face = NULL;
   return st;
 }
 

@@ -633,6 +633,94 @@ static void test_accept_hook(void)
   free(xyz);
 }
 
+/* The face hook (zone mode): each boundary face shown once, in order, during the search, the
+ * same faces the accept hook then sees (a face found to bound the cavity stays one); a refusal
+ * by the face hook stops the search, changes nothing and spares the accept hook. */
+typedef struct {
+  uint32_t n, refuse_at, abc[4096][3];
+  int accept_calls;
+  bool all_seen;
+} face_seen_t;
+
+static bool face_hook(void *arg, const i2m_dt_ctx_t *ctx, uint32_t k, const double p[3])
+{
+  face_seen_t *h = arg;
+  (void)p;
+  CU_ASSERT_EQUAL(k, h->n); /* (in order, each once) */
+  if (h->n < 4096) i2m_dt_cavity_face(ctx, k, h->abc[h->n]);
+  h->n++;
+  return k != h->refuse_at;
+}
+
+static bool faces_hook_accept(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
+{
+  face_seen_t *h = arg;
+  (void)p;
+  h->accept_calls++;
+  h->all_seen = ctx->nbnd_seen == ctx->nbnd && ctx->nbnd == h->n;
+  for (uint32_t k = 0; k < ctx->nbnd && k < 4096; k++) {
+    uint32_t abc[3];
+    i2m_dt_cavity_face(ctx, k, abc);
+    h->all_seen &= abc[0] == h->abc[k][0] && abc[1] == h->abc[k][1] && abc[2] == h->abc[k][2];
+  }
+  return true;
+}
+
+static void test_accept_face_hook(void)
+{
+  size_t n = N_RANDOM / 50;
+  double *xyz = random_points(n);
+  int64_t *gid;
+  uint32_t *vid;
+  i2m_dt_t *dt = build_with_ids(xyz, n, 53, sizeof(uint64_t), &gid, &vid); /* (records_take reads a payload) */
+  i2m_dt_ctx_t ctx;
+  CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
+  static const double everywhere[6] = {-1e6, -1e6, -1e6, 1e6, 1e6, 1e6};
+  face_seen_t *h = calloc(1, sizeof *h);
+  CU_ASSERT_FATAL(h != NULL);
+  ctx.zone = everywhere;
+  ctx.accept = faces_hook_accept;
+  ctx.accept_face = face_hook;
+  ctx.accept_arg = h;
+  ctx.journal = true;
+  int refused = 0, accepted = 0;
+  for (int m = 0; m < 200; m++) {
+    const size_t i = (size_t)(urand() * (double)n) % n;
+    double p[3];
+    for (int a = 0; a < 3; a++) p[a] = xyz[3 * i + a] + 0.3 * (2 * urand() - 1);
+    tet_records_t before;
+    records_take(dt, &before);
+    memset(h, 0, sizeof *h);
+    h->refuse_at = m % 2 == 0 ? 2 : UINT32_MAX;
+    uint32_t v;
+    const i2m_dt_status_t st = i2m_dt_insert_walk(&ctx, p, (int64_t)(n + 100 + (size_t)m), I2M_VK_FREE, dt->vtet[vid[i]], &v);
+    i2m_dt_unlock_all(&ctx);
+    if (h->refuse_at == 2) {
+      CU_ASSERT_EQUAL(st, I2M_DT_REFUSED);
+      CU_ASSERT_EQUAL(h->n, 3);
+      CU_ASSERT_EQUAL(h->accept_calls, 0);
+      CU_ASSERT(records_same(dt, &before));
+      refused++;
+    } else {
+      CU_ASSERT_EQUAL_FATAL(st, I2M_DT_OK);
+      CU_ASSERT_EQUAL(h->accept_calls, 1);
+      CU_ASSERT(h->all_seen);
+      CU_ASSERT_EQUAL_FATAL(i2m_dt_undo_insert(&ctx), I2M_OK);
+      CU_ASSERT(records_same(dt, &before));
+      accepted++;
+    }
+    records_free(&before);
+  }
+  CU_ASSERT(refused == 100 && accepted == 100);
+  CU_ASSERT_EQUAL(i2m_dt_check(dt, true), I2M_OK);
+  free(h);
+  i2m_dt_ctx_free(&ctx);
+  i2m_dt_destroy(&dt);
+  free(gid);
+  free(vid);
+  free(xyz);
+}
+
 static void test_undo_random(void)
 {
   size_t n = N_RANDOM / 50;
@@ -825,6 +913,7 @@ static const test_case_t cases[] = {
     {"large star: remove, insert again", test_large_star_remove_insert},
     {"journaled insertions undone: every tet back in its slot (random points)", test_undo_random},
     {"accept hook: a refusal changes nothing, an acceptance makes the tets it was shown", test_accept_hook},
+    {"face hook: each face once during the search, the accept hook's faces; a refusal stops it", test_accept_face_hook},
     {"journaled insertions undone: every tet back in its slot (lattice)", test_undo_lattice},
 };
 TEST_MAIN("delaunay kernel", cases)

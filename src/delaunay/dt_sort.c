@@ -9,9 +9,9 @@
 
 #include <string.h>
 
-#define AXIS_BITS 7                 /* 128 cells along each axis of the block */
-#define DIGIT_BITS 7                /* a counting pass per axis's worth of bits */
-#define DIGITS 3                    /* 3 x 7 = the 21 bits of a cell's code */
+#define AXIS_BITS 6                 /* 64 cells along each axis of the block: a few dozen tets each */
+#define DIGIT_BITS 9                /* two counting passes of 512 buckets */
+#define DIGITS 2                    /* 2 x 9 = the 18 bits of a cell's code */
 #define PREFETCH 16                 /* tets ahead whose first vertex is asked for */
 
 /* x's low AXIS_BITS bits spread to every third bit. */
@@ -59,33 +59,42 @@ static void sort_by_code(uint64_t *a, uint64_t *b, uint32_t n)
     a = b;
     b = s;
   }
-  _Static_assert(DIGITS % 2 == 1, "the sorted words end in the scratch: copied back below");
-  memcpy(b, a, (size_t)n * sizeof *a);
+  _Static_assert(DIGITS % 2 == 0, "the sorted words end where they began");
 }
 
-/* Moves each live tet's row of a per-tet array (`width` bytes per slot) to its new slot, through
- * `rows` (n rows). */
-static void move_rows(void *array, size_t width, const uint32_t *new_of, uint32_t nt, uint32_t n, void *rows)
+/* Each live tet's row of a per-tet array (`width` bytes per slot) into its new slot of dst. */
+static void scatter_rows(const void *array, size_t width, const uint32_t *new_of, uint32_t nt, void *dst)
 {
-  unsigned char *src = array, *dst = rows;
+  const unsigned char *src = array;
   for (uint32_t t = 0; t < nt; t++)
-    if (new_of[t] != I2M_DT_NONE) memcpy(dst + (size_t)new_of[t] * width, src + (size_t)t * width, width);
-  memcpy(src, dst, (size_t)n * width);
+    if (new_of[t] != I2M_DT_NONE) memcpy((unsigned char *)dst + (size_t)new_of[t] * width, src + (size_t)t * width, width);
+}
+
+/* The neighbour words into their new slots of dst, each renumbered. */
+static void scatter_neighbours(const uint32_t *tn, const uint32_t *new_of, uint32_t nt, uint32_t *dst)
+{
+  for (uint32_t t = 0; t < nt; t++) {
+    if (new_of[t] == I2M_DT_NONE) continue;
+    uint32_t *d = dst + 4 * (size_t)new_of[t];
+    for (int i = 0; i < 4; i++) {
+      const uint32_t f = tn[4 * (size_t)t + i];
+      d[i] = f < I2M_DT_REMOTE ? new_of[f >> 2] << 2 | (f & 3) : f;
+    }
+  }
 }
 
 i2m_err_t i2m_dt_sort_tets(i2m_dt_t *dt, const double lo[3], const double hi[3])
 {
   const uint32_t nt = i2m_dt_ntets_slots(dt);
-  uint32_t *new_of = NULL;
-  void *rows = NULL; /* a row of any per-tet array for each live tet; first the sort's words */
-  const size_t row = dt->pay_size > 4 * sizeof *dt->tv ? dt->pay_size : 4 * sizeof *dt->tv;
+  uint32_t *new_of = NULL, *rows = NULL; /* rows: the sort's words, then the arrays' rows */
+  const size_t row_words = dt->pay_size > 4 * sizeof *dt->tv ? (dt->pay_size + 3) / 4 : 4;
   _Static_assert(4 * sizeof(uint32_t) == 2 * sizeof(uint64_t), "a row holds the sort's word and its scratch's");
   i2m_err_t err = i2m_malloc(nt ? nt : 1, sizeof *new_of, &new_of);
-  if (err == I2M_OK) err = i2m_malloc(nt ? nt : 1, row, &rows);
+  if (err == I2M_OK) err = i2m_malloc((size_t)dt->cap_t * row_words, sizeof *rows, &rows);
   if (err != I2M_OK) goto done; /* (nothing changed) */
   double scale[3];
   for (int a = 0; a < 3; a++) scale[a] = hi[a] > lo[a] ? (double)(1u << AXIS_BITS) / (hi[a] - lo[a]) : 0.0;
-  uint64_t *words = rows, *scratch = words + nt;
+  uint64_t *words = (uint64_t *)rows, *scratch = words + nt;
   uint32_t n = 0;
   for (uint32_t t = 0; t < nt; t++) {
     if (t + PREFETCH < nt) I2M_PREFETCH(dt->xyzw + 4 * (size_t)dt->tv[4 * (size_t)(t + PREFETCH)]);
@@ -94,18 +103,21 @@ i2m_err_t i2m_dt_sort_tets(i2m_dt_t *dt, const double lo[3], const double hi[3])
   sort_by_code(words, scratch, n);
   for (uint32_t t = 0; t < nt; t++) new_of[t] = I2M_DT_NONE;
   for (uint32_t k = 0; k < n; k++) new_of[(uint32_t)words[k]] = k;
-  move_rows(dt->tv, 4 * sizeof *dt->tv, new_of, nt, n, rows);
-  move_rows(dt->tn, 4 * sizeof *dt->tn, new_of, nt, n, rows);
-  if (dt->pay_size) move_rows(dt->tpay, dt->pay_size, new_of, nt, n, rows);
+  if (dt->pay_size) { /* (first, while rows has room for the widest row) */
+    scatter_rows(dt->tpay, dt->pay_size, new_of, nt, rows);
+    memcpy(dt->tpay, rows, (size_t)n * dt->pay_size);
+  }
   uint32_t *meta = rows; /* (each tet keeps its generation, unmarked) */
   for (uint32_t t = 0; t < nt; t++)
     if (new_of[t] != I2M_DT_NONE) meta[new_of[t]] = i2m_dt_meta(dt, t) & ~I2M_TM_MARK;
   for (uint32_t k = 0; k < n; k++) atomic_store_explicit(&dt->meta[k], meta[k], memory_order_relaxed);
   for (uint32_t t = n; t < nt; t++) atomic_store_explicit(&dt->meta[t], I2M_TM_DEAD, memory_order_relaxed);
-  for (size_t i = 0; i < 4 * (size_t)n; i++) {
-    const uint32_t f = dt->tn[i];
-    if (f < I2M_DT_REMOTE) dt->tn[i] = new_of[f >> 2] << 2 | (f & 3);
-  }
+  /* tv and tn each into rows, which then takes the array's place (and its memory the next) */
+  uint32_t *swap;
+  scatter_rows(dt->tv, 4 * sizeof *dt->tv, new_of, nt, rows);
+  swap = dt->tv, dt->tv = rows, rows = swap;
+  scatter_neighbours(dt->tn, new_of, nt, rows);
+  swap = dt->tn, dt->tn = rows, rows = swap;
   const uint32_t nv = i2m_dt_nverts_slots(dt);
   for (uint32_t v = 0; v < nv; v++)
     if (dt->vkind[v] != I2M_VK_DEAD && dt->vtet[v] < nt) dt->vtet[v] = new_of[dt->vtet[v]];

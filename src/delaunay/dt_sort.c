@@ -66,8 +66,9 @@ static void sort_by_code(uint64_t *a, uint64_t *b, uint32_t n)
 static void scatter_rows(const void *array, size_t width, const uint32_t *new_of, uint32_t nt, void *dst)
 {
   const unsigned char *src = array;
+  unsigned char *out = dst;
   for (uint32_t t = 0; t < nt; t++)
-    if (new_of[t] != I2M_DT_NONE) memcpy((unsigned char *)dst + (size_t)new_of[t] * width, src + (size_t)t * width, width);
+    if (new_of[t] != I2M_DT_NONE) memcpy(out + (size_t)new_of[t] * width, src + (size_t)t * width, width);
 }
 
 /* The neighbour words into their new slots of dst, each renumbered. */

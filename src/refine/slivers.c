@@ -1346,7 +1346,7 @@ static i2m_err_t collect_after_round(i2m_refine_t *r, struct sliver_pass *S)
   size_t n = 0;
   for (size_t k = 0; k < L->n; k++) {
     const uint32_t t = L->a[k].t;
-    if (i2m_dt_stamp(dt, t) == L->a[k].meta && !(S->seen_bits[t >> 6] & (uint64_t)1 << (t & 63))) L->a[n++] = L->a[k];
+    if (i2m_dt_stamp(dt, t) == L->a[k].meta) L->a[n++] = L->a[k];
   }
   L->n = n;
   i2m_err_t err = I2M_OK;

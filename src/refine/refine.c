@@ -420,8 +420,7 @@ static bool slots_recorded(const i2m_refine_t *r)
 i2m_err_t refine_sort_tets(i2m_refine_t *r)
 {
   if (slots_recorded(r)) return I2M_OK; /* (they would name other tets) */
-  for (int k = 0; k < r->nworkers; k++) /* (a worker released has no slots: its dead ones are dropped) */
-    if (r->workers[k].ctx.dt) i2m_dt_ctx_flush(&r->workers[k].ctx);
+  i2m_refine_sync(r); /* (the workers' slot sets back on the free lists, which the sort empties) */
   pieces_invalidate(r);
   double lo[3], hi[3]; /* (the labelled block, in the triangulation's frame) */
   for (int a = 0; a < 3; a++) {

@@ -577,6 +577,26 @@ static bool record_hook(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
   return h->accept;
 }
 
+/* The hook tests: a trial point p within 0.3 of a random input point (its index returned). */
+static size_t trial_point(const double *xyz, size_t n, double p[3])
+{
+  const size_t i = (size_t)(urand() * (double)n) % n;
+  for (int a = 0; a < 3; a++) p[a] = xyz[3 * i + a] + 0.3 * (2 * urand() - 1);
+  return i;
+}
+
+/* The hook tests' end: the triangulation valid, everything freed. */
+static void hook_test_end(i2m_dt_ctx_t *ctx, i2m_dt_t **dt, void *hook, int64_t *gid, uint32_t *vid, double *xyz)
+{
+  CU_ASSERT_EQUAL(i2m_dt_check(*dt, true), I2M_OK);
+  free(hook);
+  i2m_dt_ctx_free(ctx);
+  i2m_dt_destroy(dt);
+  free(gid);
+  free(vid);
+  free(xyz);
+}
+
 static void test_accept_hook(void)
 {
   size_t n = N_RANDOM / 50;
@@ -593,9 +613,8 @@ static void test_accept_hook(void)
   ctx.journal = true;
   int refused = 0, accepted = 0;
   for (int m = 0; m < 200; m++) {
-    const size_t i = (size_t)(urand() * (double)n) % n;
     double p[3];
-    for (int a = 0; a < 3; a++) p[a] = xyz[3 * i + a] + 0.3 * (2 * urand() - 1);
+    const size_t i = trial_point(xyz, n, p);
     tet_records_t before;
     records_take(dt, &before);
     h->before = &before;
@@ -624,13 +643,7 @@ static void test_accept_hook(void)
     records_free(&before);
   }
   CU_ASSERT(refused == 100 && accepted == 100);
-  CU_ASSERT_EQUAL(i2m_dt_check(dt, true), I2M_OK);
-  free(h);
-  i2m_dt_ctx_free(&ctx);
-  i2m_dt_destroy(&dt);
-  free(gid);
-  free(vid);
-  free(xyz);
+  hook_test_end(&ctx, &dt, h, gid, vid, xyz);
 }
 
 /* The face hook (zone mode): each boundary face shown once, in order, during the search, the
@@ -685,9 +698,8 @@ static void test_accept_face_hook(void)
   ctx.journal = true;
   int refused = 0, accepted = 0;
   for (int m = 0; m < 200; m++) {
-    const size_t i = (size_t)(urand() * (double)n) % n;
     double p[3];
-    for (int a = 0; a < 3; a++) p[a] = xyz[3 * i + a] + 0.3 * (2 * urand() - 1);
+    const size_t i = trial_point(xyz, n, p);
     tet_records_t before;
     records_take(dt, &before);
     memset(h, 0, sizeof *h);
@@ -712,13 +724,7 @@ static void test_accept_face_hook(void)
     records_free(&before);
   }
   CU_ASSERT(refused == 100 && accepted == 100);
-  CU_ASSERT_EQUAL(i2m_dt_check(dt, true), I2M_OK);
-  free(h);
-  i2m_dt_ctx_free(&ctx);
-  i2m_dt_destroy(&dt);
-  free(gid);
-  free(vid);
-  free(xyz);
+  hook_test_end(&ctx, &dt, h, gid, vid, xyz);
 }
 
 static void test_undo_random(void)

@@ -134,6 +134,7 @@ typedef struct {
   double min_before, min_after;          /**< smallest dihedral angle of the output tets (degrees) */
   int64_t tried, kept;                   /**< moves (and insertions) tried and kept */
   int64_t inserted;                      /**< of the kept: points inserted (new vertices) */
+  int64_t removed;                       /**< of the kept: vertices removed (none in their place) */
   double seconds;
   i2m_dihedral_bands_t bands_before;     /**< this process's output tets' dihedral bands before */
 } i2m_sliver_stats_t;

@@ -996,13 +996,14 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
 /* This rank's sliver figures summed (counts, moves) or at their extreme (angles) over the ranks. */
 static void reduce_sliver_stats(const i2m_par_t *par, i2m_sliver_stats_t *st)
 {
-  int64_t n[5] = {st->slivers_before, st->slivers_after, st->tried, st->kept, st->inserted};
-  i2m_par_sum_i64(par, n, 5);
+  int64_t n[6] = {st->slivers_before, st->slivers_after, st->tried, st->kept, st->inserted, st->removed};
+  i2m_par_sum_i64(par, n, 6);
   st->slivers_before = n[0];
   st->slivers_after = n[1];
   st->tried = n[2];
   st->kept = n[3];
   st->inserted = n[4];
+  st->removed = n[5];
   st->min_before = -i2m_par_max(par, -st->min_before);
   st->min_after = -i2m_par_max(par, -st->min_after);
   st->seconds = i2m_par_max(par, st->seconds);

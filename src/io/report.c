@@ -73,9 +73,9 @@ void i2m_report_print(FILE *f, const i2m_report_t *r)
   }
   if (r->sliver_angle > 0) {
     const i2m_sliver_stats_t *v = &r->slivers;
-    fprintf(f, "  slivers      %lld -> %lld tets with a dihedral angle below %.3g deg (smallest %.3g -> %.3g deg); %lld of %lld changes kept (%lld points inserted, the others vertex moves)\n",
+    fprintf(f, "  slivers      %lld -> %lld tets with a dihedral angle below %.3g deg (smallest %.3g -> %.3g deg); %lld of %lld changes kept (%lld points inserted, %lld vertices removed, the others vertex moves)\n",
             (long long)v->slivers_before, (long long)v->slivers_after, r->sliver_angle, v->min_before, v->min_after,
-            (long long)v->kept, (long long)v->tried, (long long)v->inserted);
+            (long long)v->kept, (long long)v->tried, (long long)v->inserted, (long long)v->removed);
   }
   fprintf(f, "  time         ");
   for (int p = 0; p < I2M_NPHASES; p++) fprintf(f, "%s %.2f s, ", i2m_phase_name(p), r->phase_seconds[p]);
@@ -322,8 +322,8 @@ i2m_err_t i2m_report_write_json(const char *path, const i2m_report_t *r)
             (long long)v->slivers_before, (long long)v->slivers_after);
     i2m_json_member(f, "min_dihedral_before", v->min_before, false);
     i2m_json_member(f, "min_dihedral_after", v->min_after, false);
-    fprintf(f, "\"moves_tried\": %lld, \"moves_kept\": %lld, \"points_inserted\": %lld, \"dihedral_bands_before\": ", (long long)v->tried,
-            (long long)v->kept, (long long)v->inserted);
+    fprintf(f, "\"moves_tried\": %lld, \"moves_kept\": %lld, \"points_inserted\": %lld, \"vertices_removed\": %lld, \"dihedral_bands_before\": ",
+            (long long)v->tried, (long long)v->kept, (long long)v->inserted, (long long)v->removed);
     json_bands(f, &r->bands_before);
     fprintf(f, "},\n");
   }

@@ -9,7 +9,7 @@
  * leaves the mesh).
  *
  * A fragment is a face-connected component of one label in the mesh (a piece) of at most
- * PIECE_SMALL_TETS tets and less than PIECE_FRAGMENT_VOXELS voxels of volume, that lies in a
+ * pieces_small_tets tets and less than PIECE_FRAGMENT_VOXELS voxels of volume, that lies in a
  * component of the image (6-connected voxels of its label) of at least
  * PIECE_FRAGMENT_MIN_IMAGE_VOXELS voxels and holds less than 1/PIECE_FRAGMENT_SHARE of that
  * component's volume (pieces_is_fragment): so small a piece cannot be what the mesh makes of that component,

@@ -268,7 +268,7 @@ static i2m_err_t describe_parts(const i2m_refine_t *r, pieces_t *P, i2m_progress
   }
   i2m_free(&H.key);
   i2m_free(&H.at);
-  for (size_t i = 0; i < P->nparts; i++) P->part[i].small = P->part[i].ntets <= PIECE_SMALL_TETS;
+  for (size_t i = 0; i < P->nparts; i++) P->part[i].small = P->part[i].ntets <= pieces_small_tets(r);
   return err;
 }
 
@@ -424,7 +424,7 @@ static int64_t gfind(int64_t *par, int64_t x)
 bool pieces_group_is_fragment(const i2m_refine_t *r, const i2m_group_t *g)
 {
   const double voxel_volume = r->img->spacing[0] * r->img->spacing[1] * r->img->spacing[2];
-  if (g->ntets > PIECE_SMALL_TETS || g->comp < 0 || g->volume >= PIECE_FRAGMENT_VOXELS * voxel_volume) return false;
+  if (g->ntets > pieces_small_tets(r) || g->comp < 0 || g->volume >= PIECE_FRAGMENT_VOXELS * voxel_volume) return false;
   const int64_t iv = r->pieces_ic.size[g->comp];
   return iv >= PIECE_FRAGMENT_MIN_IMAGE_VOXELS && g->volume * PIECE_FRAGMENT_SHARE < (double)iv * voxel_volume;
 }
@@ -541,7 +541,7 @@ static i2m_err_t decide_fragments(const i2m_refine_t *r, const i2m_parts_t *all,
   I2M_CALL_GOTO(err, done, i2m_malloc((size_t)nl, sizeof *main_group, &main_group));
   for (int l = 0; l < nl; l++) main_group[l] = -1;
   for (size_t k = 0; k < G->ngroups; k++)
-    if (G->group[k].ntets > PIECE_SMALL_TETS) big[G->group[k].label] = 1;
+    if (G->group[k].ntets > pieces_small_tets(r)) big[G->group[k].label] = 1;
   for (size_t k = 0; k < G->ngroups; k++) { /* (ties: the least key) */
     const i2m_group_t *g = &G->group[k];
     if (big[g->label]) continue;
@@ -680,19 +680,20 @@ i2m_err_t i2m_refine_set_groups(i2m_refine_t *r, i2m_pieces_global_t *G)
 
 /* The fragments' tets that stay in the mesh (their new labels already there): a walk over
  * the faces inside each of their parts, from its least slot (a fragment has at most
- * PIECE_SMALL_TETS tets: no pass over every tet). */
+ * pieces_small_tets tets: no pass over every tet). */
 static i2m_err_t fragment_tets(const i2m_refine_t *r, const uint8_t *moved, uint32_t **out, size_t *n)
 {
   const pieces_t *P = &r->pieces;
   const i2m_dt_t *dt = r->dt;
+  const size_t most = (size_t)pieces_small_tets(r);
   size_t cap = 0;
   *out = NULL;
   *n = 0;
   for (size_t part = 0; part < P->nparts; part++) {
     if (!moved[part] || !tet_kept(dt, P->root[part])) continue; /* (relabelled 0: out of the mesh) */
     const size_t first = *n;
-    if (*n + PIECE_SMALL_TETS + 1 > cap) {
-      cap = 2 * cap + PIECE_SMALL_TETS + 256;
+    if (*n + most + 1 > cap) {
+      cap = 2 * cap + most + 256;
       I2M_CALL(i2m_realloc(cap, sizeof **out, out));
     }
     (*out)[(*n)++] = P->root[part];
@@ -704,7 +705,7 @@ static i2m_err_t fragment_tets(const i2m_refine_t *r, const uint8_t *moved, uint
         bool seen = false;
         for (size_t j = first; j < *n && !seen; j++) seen = (*out)[j] == nb >> 2;
         if (seen) continue;
-        I2M_CHECK(*n < cap, I2M_ERR_INTERNAL, "a fragment of more than %d tets", PIECE_SMALL_TETS);
+        I2M_CHECK(*n < cap, I2M_ERR_INTERNAL, "a fragment of more than %zu tets", most);
         (*out)[(*n)++] = nb >> 2;
       }
     }

@@ -101,6 +101,7 @@ typedef struct {
   uint16_t *new_label;                      /* [cap_new_label] and the labels of the tets it makes */
   uint32_t cap_new_label;
   int64_t prejudged;                        /* trials refused before their insertion by a rule */
+  int64_t dropped;                          /* vertices left out (try_drop) */
   /* the change under way's region before and after it (regions.c): a vertex's star as it was
    * before its removal, and the tets a trial's cavity took beyond the hole */
   region_t star_before, was, now;
@@ -962,6 +963,32 @@ static int try_target(perturb_t *P, mover_t *M, const double p[3], double floor_
   return ok < 0 ? MOVE_DEFERRED : MOVE_UNDONE;
 }
 
+/* The vertex (out) left out for good: kept when the tets that fill its hole pass as a move's
+ * tets would (changed_ok).  A MOVE_* result. */
+static int try_drop(perturb_t *P, mover_t *M, double floor_cos)
+{
+  P->tried++;
+  P->nchanged = M->nremoved;
+  P->before_label = P->star_label;
+  P->before = &P->star_before;
+  const int ok = changed_ok(P, floor_cos, false, M->nremoved, M->nremoved);
+  if (ok <= 0) return ok < 0 ? MOVE_DEFERRED : MOVE_UNDONE;
+  P->kept++;
+  P->dropped++;
+  M->out = false;
+  return note_touched(P, false) == I2M_OK ? MOVE_KEPT : MOVE_ERROR;
+}
+
+/* A wide round's first try for a vertex of a sliver: the vertex taken out of the mesh, and
+ * left out if that passes (try_drop; its targets start with its removal anyway).  On the knee
+ * at 6 M tets, a sliver of four surface vertices (three on a plane of voxel faces, one just
+ * off it) at 12.9 degrees refused every insertion and every move, and went with one of them. */
+static int drop_first(perturb_t *P, mover_t *M, double floor_cos)
+{
+  const int out = mover_take_out(P, M);
+  return out == MOVE_KEPT ? try_drop(P, M, floor_cos) : out;
+}
+
 /* After the vertex's targets: back where it was, if none was kept. */
 static int mover_end(perturb_t *P, mover_t *M)
 {
@@ -1126,6 +1153,12 @@ static int treat_sliver(perturb_t *P, sliver_t *s)
     mover_t M;
     mover_begin(w->r, v, &M);
     const bool wide = w->r->slivers->wide;
+    if (wide) {
+      const int got = drop_first(P, &M, floor_cos);
+      if (got == MOVE_KEPT || got == MOVE_ERROR) return got;
+      if (got == MOVE_DEFERRED) result = MOVE_DEFERRED;
+      if (M.out) moved = i;
+    }
     const int targets = wide ? WIDE_MOVES : MOVES_PER_VERTEX;
     const double reach = wide ? WIDE_REACH : REACH;
     for (int m = 0; m < targets; m++) {
@@ -1459,6 +1492,7 @@ void i2m_refine_slivers_caps(i2m_refine_t *r) { r->slivers->caps = true; }
 static i2m_err_t pass_new(i2m_refine_t *r, double bound)
 {
   pieces_invalidate(r); /* (the pass changes the mesh) */
+  r->sliver_pass_ran = true;
   I2M_CALL(i2m_calloc(1, sizeof *r->slivers, &r->slivers));
   struct sliver_pass *S = r->slivers;
   S->final_bound = bound;
@@ -1500,9 +1534,9 @@ i2m_err_t i2m_refine_slivers_begin(i2m_refine_t *r, double bound)
 }
 
 /* Rounds go on while slivers are left and the last round kept a move; after a round that
- * kept none, one wide round (more targets, farther) before the stage ends: the liver at 6 M
- * tets kept 7 tets below 5 degrees after a round kept nothing, and one of them (1.7 degrees)
- * to the end of the pass. */
+ * kept none, one wide round (more targets, farther, and vertices left out: drop_first) before
+ * the stage ends: the liver at 6 M tets kept 7 tets below 5 degrees after a round kept
+ * nothing, and one of them (1.7 degrees) to the end of the pass. */
 bool i2m_refine_slivers_has_work(const i2m_refine_t *r)
 {
   const struct sliver_pass *S = r->slivers;
@@ -1619,8 +1653,8 @@ i2m_err_t i2m_refine_slivers_sequential(i2m_refine_t *r)
 static i2m_err_t final_stats(i2m_refine_t *r, struct sliver_pass *S, double bound)
 {
   moves_so_far(r, S, &S->st.tried, &S->st.kept);
-  S->st.inserted = 0;
-  for (int k = 0; k < r->nworkers; k++) S->st.inserted += S->per[k].inserted;
+  S->st.inserted = S->st.removed = 0;
+  for (int k = 0; k < r->nworkers; k++) S->st.inserted += S->per[k].inserted, S->st.removed += S->per[k].dropped;
   i2m_err_t err = I2M_OK;
   if (!(S->watching && figures_from_watch(r, bound, &S->st.min_after, &S->st.slivers_after)))
     err = collect_all(r, bound, &S->list, &S->st.min_after, &S->st.slivers_after, NULL, NULL);

@@ -1653,17 +1653,17 @@ i2m_err_t i2m_refine_slivers_sequential(i2m_refine_t *r)
 static i2m_err_t final_stats(i2m_refine_t *r, struct sliver_pass *S, double bound)
 {
   moves_so_far(r, S, &S->st.tried, &S->st.kept);
+  int64_t in_place = 0, in_place_kept = 0, cut = 0, prejudged = 0;
   S->st.inserted = S->st.removed = 0;
-  for (int k = 0; k < r->nworkers; k++) S->st.inserted += S->per[k].inserted, S->st.removed += S->per[k].dropped;
+  for (int k = 0; k < r->nworkers; k++) {
+    const perturb_t *P = &S->per[k];
+    S->st.inserted += P->inserted, S->st.removed += P->dropped;
+    in_place += P->in_place, in_place_kept += P->in_place_kept, cut += P->cut, prejudged += P->prejudged;
+  }
   i2m_err_t err = I2M_OK;
   if (!(S->watching && figures_from_watch(r, bound, &S->st.min_after, &S->st.slivers_after)))
     err = collect_all(r, bound, &S->list, &S->st.min_after, &S->st.slivers_after, NULL, NULL);
   S->st.seconds = i2m_wtime() - S->t0;
-  int64_t in_place = 0, in_place_kept = 0, cut = 0, prejudged = 0;
-  for (int k = 0; k < r->nworkers; k++) {
-    const perturb_t *P = &S->per[k];
-    in_place += P->in_place, in_place_kept += P->in_place_kept, cut += P->cut, prejudged += P->prejudged;
-  }
   i2m_debug("slivers: %lld moves tried, %lld kept; in place (without a removal) %lld tried, %lld kept; %lld refused as "
             "they would cut a tissue's path, %lld by a rule before their insertion; %.2f s",
             (long long)S->st.tried, (long long)S->st.kept, (long long)in_place, (long long)in_place_kept, (long long)cut,

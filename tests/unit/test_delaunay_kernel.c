@@ -577,51 +577,68 @@ static bool record_hook(void *arg, const i2m_dt_ctx_t *ctx, const double p[3])
   return h->accept;
 }
 
-/* The hook tests: a trial point p within 0.3 of a random input point (its index returned). */
-static size_t trial_point(const double *xyz, size_t n, double p[3])
+/* The hook tests' setting: a triangulation of random points with ids and payloads (records_take
+ * reads one), a journaled context on it. */
+typedef struct {
+  size_t n;
+  double *xyz;
+  int64_t *gid;
+  uint32_t *vid;
+  i2m_dt_t *dt;
+  i2m_dt_ctx_t ctx;
+} hook_test_t;
+
+static void hook_test_begin(hook_test_t *T, uint64_t seed)
 {
-  const size_t i = (size_t)(urand() * (double)n) % n;
-  for (int a = 0; a < 3; a++) p[a] = xyz[3 * i + a] + 0.3 * (2 * urand() - 1);
-  return i;
+  T->n = N_RANDOM / 50;
+  T->xyz = random_points(T->n);
+  T->dt = build_with_ids(T->xyz, T->n, seed, sizeof(uint64_t), &T->gid, &T->vid);
+  CU_ASSERT_FATAL(i2m_dt_ctx_init(&T->ctx, T->dt, 1, false) == I2M_OK);
+  T->ctx.journal = true;
+}
+
+/* Trial m (the hooks set): the tets' records into *before, then the insertion of a point
+ * within 0.3 of a random input point. */
+static i2m_dt_status_t hook_trial(hook_test_t *T, int m, tet_records_t *before, uint32_t *v)
+{
+  const size_t i = (size_t)(urand() * (double)T->n) % T->n;
+  double p[3];
+  for (int a = 0; a < 3; a++) p[a] = T->xyz[3 * i + a] + 0.3 * (2 * urand() - 1);
+  records_take(T->dt, before);
+  const i2m_dt_status_t st =
+      i2m_dt_insert_walk(&T->ctx, p, (int64_t)(T->n + 100 + (size_t)m), I2M_VK_FREE, T->dt->vtet[T->vid[i]], v);
+  i2m_dt_unlock_all(&T->ctx);
+  return st;
 }
 
 /* The hook tests' end: the triangulation valid, everything freed. */
-static void hook_test_end(i2m_dt_ctx_t *ctx, i2m_dt_t **dt, void *hook, int64_t *gid, uint32_t *vid, double *xyz)
+static void hook_test_end(hook_test_t *T, void *hook)
 {
-  CU_ASSERT_EQUAL(i2m_dt_check(*dt, true), I2M_OK);
+  CU_ASSERT_EQUAL(i2m_dt_check(T->dt, true), I2M_OK);
   free(hook);
-  i2m_dt_ctx_free(ctx);
-  i2m_dt_destroy(dt);
-  free(gid);
-  free(vid);
-  free(xyz);
+  i2m_dt_ctx_free(&T->ctx);
+  i2m_dt_destroy(&T->dt);
+  free(T->gid);
+  free(T->vid);
+  free(T->xyz);
 }
 
 static void test_accept_hook(void)
 {
-  size_t n = N_RANDOM / 50;
-  double *xyz = random_points(n);
-  int64_t *gid;
-  uint32_t *vid;
-  i2m_dt_t *dt = build_with_ids(xyz, n, 47, sizeof(uint64_t), &gid, &vid);
-  i2m_dt_ctx_t ctx;
-  CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
+  hook_test_t T;
+  hook_test_begin(&T, 47);
+  i2m_dt_t *dt = T.dt;
   hook_seen_t *h = calloc(1, sizeof *h);
   CU_ASSERT_FATAL(h != NULL);
-  ctx.accept = record_hook;
-  ctx.accept_arg = h;
-  ctx.journal = true;
+  T.ctx.accept = record_hook;
+  T.ctx.accept_arg = h;
   int refused = 0, accepted = 0;
   for (int m = 0; m < 200; m++) {
-    double p[3];
-    const size_t i = trial_point(xyz, n, p);
     tet_records_t before;
-    records_take(dt, &before);
     h->before = &before;
     h->accept = m % 2 == 0;
     uint32_t v;
-    const i2m_dt_status_t st = i2m_dt_insert_walk(&ctx, p, (int64_t)(n + 100 + (size_t)m), I2M_VK_FREE, dt->vtet[vid[i]], &v);
-    i2m_dt_unlock_all(&ctx);
+    const i2m_dt_status_t st = hook_trial(&T, m, &before, &v);
     CU_ASSERT(h->n > 0 && h->n < 4096);
     CU_ASSERT(h->ncav > 0 && h->marked == h->ncav); /* (the cavity is marked when the hook is asked) */
     CU_ASSERT_EQUAL(h->stamped, h->ncav);
@@ -631,19 +648,19 @@ static void test_accept_hook(void)
       refused++;
     } else {
       CU_ASSERT_EQUAL_FATAL(st, I2M_DT_OK);
-      CU_ASSERT_EQUAL(ctx.nnew, h->n);
-      for (uint32_t k = 0; k < ctx.nnew && k < h->n; k++) {
-        const uint32_t *tv = dt->tv + 4 * (size_t)ctx.newt[k];
+      CU_ASSERT_EQUAL(T.ctx.nnew, h->n);
+      for (uint32_t k = 0; k < T.ctx.nnew && k < h->n; k++) {
+        const uint32_t *tv = dt->tv + 4 * (size_t)T.ctx.newt[k];
         CU_ASSERT(tv[0] == h->abc[k][0] && tv[1] == h->abc[k][1] && tv[2] == h->abc[k][2] && tv[3] == v);
       }
-      CU_ASSERT_EQUAL_FATAL(i2m_dt_undo_insert(&ctx), I2M_OK);
+      CU_ASSERT_EQUAL_FATAL(i2m_dt_undo_insert(&T.ctx), I2M_OK);
       CU_ASSERT(records_same(dt, &before));
       accepted++;
     }
     records_free(&before);
   }
   CU_ASSERT(refused == 100 && accepted == 100);
-  hook_test_end(&ctx, &dt, h, gid, vid, xyz);
+  hook_test_end(&T, h);
 }
 
 /* The face hook (zone mode): each boundary face shown once, in order, during the search, the
@@ -681,32 +698,23 @@ static bool faces_hook_accept(void *arg, const i2m_dt_ctx_t *ctx, const double p
 
 static void test_accept_face_hook(void)
 {
-  size_t n = N_RANDOM / 50;
-  double *xyz = random_points(n);
-  int64_t *gid;
-  uint32_t *vid;
-  i2m_dt_t *dt = build_with_ids(xyz, n, 53, sizeof(uint64_t), &gid, &vid); /* (records_take reads a payload) */
-  i2m_dt_ctx_t ctx;
-  CU_ASSERT_FATAL(i2m_dt_ctx_init(&ctx, dt, 1, false) == I2M_OK);
+  hook_test_t T;
+  hook_test_begin(&T, 53);
+  i2m_dt_t *dt = T.dt;
   static const double everywhere[6] = {-1e6, -1e6, -1e6, 1e6, 1e6, 1e6};
   face_seen_t *h = calloc(1, sizeof *h);
   CU_ASSERT_FATAL(h != NULL);
-  ctx.zone = everywhere;
-  ctx.accept = faces_hook_accept;
-  ctx.accept_face = face_hook;
-  ctx.accept_arg = h;
-  ctx.journal = true;
+  T.ctx.zone = everywhere;
+  T.ctx.accept = faces_hook_accept;
+  T.ctx.accept_face = face_hook;
+  T.ctx.accept_arg = h;
   int refused = 0, accepted = 0;
   for (int m = 0; m < 200; m++) {
-    double p[3];
-    const size_t i = trial_point(xyz, n, p);
     tet_records_t before;
-    records_take(dt, &before);
     memset(h, 0, sizeof *h);
     h->refuse_at = m % 2 == 0 ? 2 : UINT32_MAX;
     uint32_t v;
-    const i2m_dt_status_t st = i2m_dt_insert_walk(&ctx, p, (int64_t)(n + 100 + (size_t)m), I2M_VK_FREE, dt->vtet[vid[i]], &v);
-    i2m_dt_unlock_all(&ctx);
+    const i2m_dt_status_t st = hook_trial(&T, m, &before, &v);
     if (h->refuse_at == 2) {
       CU_ASSERT_EQUAL(st, I2M_DT_REFUSED);
       CU_ASSERT_EQUAL(h->n, 3);
@@ -717,14 +725,14 @@ static void test_accept_face_hook(void)
       CU_ASSERT_EQUAL_FATAL(st, I2M_DT_OK);
       CU_ASSERT_EQUAL(h->accept_calls, 1);
       CU_ASSERT(h->all_seen);
-      CU_ASSERT_EQUAL_FATAL(i2m_dt_undo_insert(&ctx), I2M_OK);
+      CU_ASSERT_EQUAL_FATAL(i2m_dt_undo_insert(&T.ctx), I2M_OK);
       CU_ASSERT(records_same(dt, &before));
       accepted++;
     }
     records_free(&before);
   }
   CU_ASSERT(refused == 100 && accepted == 100);
-  hook_test_end(&ctx, &dt, h, gid, vid, xyz);
+  hook_test_end(&T, h);
 }
 
 static void test_undo_random(void)

@@ -426,22 +426,29 @@ static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const ck_grid_t
   ck_progress_begin(&pr, "fidelity, image->mesh distances", "image faces", nf);
   CK_OMP("omp parallel for schedule(dynamic, 4) reduction(+ : sum)")
   for (int64_t ch = 0; ch < nchunk; ch++) {
-    double prev[3] = {0, 0, 0}, pd = INFINITY;
+    double prev[3] = {0, 0, 0}, pd = INFINITY, seen = 0.0; /* seen: the chunk's largest so far */
     int64_t hint = -1;
     int64_t end = (ch + 1) * CK_CHUNK < nf ? (ch + 1) * CK_CHUNK : nf;
     ck_progress_add(&pr, end - ch * CK_CHUNK); /* (counted as the chunk starts) */
     for (int64_t i = ch * CK_CHUNK; i < end; i++) {
-      double p[FACE_POINTS][3], m = 0.0;
+      double p[FACE_POINTS][3], m = 0.0, centre = 0.0;
       int ax = faces[i].axis;
-      float share = (float)(img->spacing[(ax + 1) % 3] * img->spacing[(ax + 2) % 3] / FACE_SAMPLES);
+      const double sb = img->spacing[(ax + 1) % 3], sc = img->spacing[(ax + 2) % 3];
+      float share = (float)(sb * sc / FACE_SAMPLES);
       face_points(img, faces + i, p);
       for (int q = 0; q < FACE_POINTS; q++) {
+        /* The corners count for the maximum only, and lie within half the face's diagonal of
+         * its centre (sample 4): when the centre's distance plus that cannot beat the largest
+         * found, they cannot raise the maximum (the face's own is then a lower bound, which
+         * the search for the worst face below may take: a face it picks is recomputed whole). */
+        if (q == FACE_SAMPLES && centre + 0.5 * sqrt(sb * sb + sc * sc) <= seen) break;
         double ub = isfinite(pd) ? pd + sqrt(i2m_sq(p[q][0] - prev[0]) + i2m_sq(p[q][1] - prev[1]) +
                                              i2m_sq(p[q][2] - prev[2]))
                                  : INFINITY;
         pd = grid_nearest(tg, p[q], ub, tri_dist2, tc, &hint);
         memcpy(prev, p[q], sizeof prev);
         m = fmax(m, pd);
+        centre = q == 4 ? pd : centre;
         if (q < FACE_SAMPLES) {
           d[i * FACE_SAMPLES + q] = (float)pd;
           w[i * FACE_SAMPLES + q] = share;
@@ -449,6 +456,7 @@ static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const ck_grid_t
         }
       }
       fmaxd[i] = (float)m;
+      seen = m > seen ? m : seen;
     }
   }
   ck_progress_end(&pr);

@@ -766,6 +766,14 @@ static bool in_hole(const perturb_t *P, uint32_t t)
   return false;
 }
 
+/* The region a change of the vertex taken out replaces is its star as it was (P->star_before,
+ * or the one label P->star_label). */
+static void before_is_star(perturb_t *P)
+{
+  P->before_label = P->star_label;
+  P->before = &P->star_before;
+}
+
 /* The region an accepted trial changes, as it is before (P->before): the cavity's tets for a
  * new point; for a vertex moved, its star before the removal, grown by the cavity's tets
  * beyond the hole when there are any (the hole's tets were never in the mesh that counts). */
@@ -779,8 +787,7 @@ static i2m_err_t region_before_trial(perturb_t *P, const i2m_dt_ctx_t *ctx)
   }
   uint32_t in_cavity = 0;
   for (uint32_t k = 0; k < P->nchanged; k++) in_cavity += i2m_dt_meta(dt, P->changed[k]) != P->hole_meta[k];
-  P->before_label = P->star_label;
-  P->before = &P->star_before;
+  before_is_star(P);
   if (in_cavity == ctx->ncav) return I2M_OK;
   I2M_CALL(grow_list(&P->extra, &P->cap_extra, ctx->ncav));
   P->nextra = 0;
@@ -969,8 +976,7 @@ static int try_drop(perturb_t *P, mover_t *M, double floor_cos)
 {
   P->tried++;
   P->nchanged = M->nremoved;
-  P->before_label = P->star_label;
-  P->before = &P->star_before;
+  before_is_star(P);
   const int ok = changed_ok(P, floor_cos, false, M->nremoved, M->nremoved);
   if (ok <= 0) return ok < 0 ? MOVE_DEFERRED : MOVE_UNDONE;
   P->kept++;

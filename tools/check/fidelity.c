@@ -388,6 +388,7 @@ out:
 /* Points of an image face: nine sample points (centres of a 3 x 3 split, each standing for
  * a ninth of the face) then the four corners (for the maximum only). */
 #define FACE_SAMPLES 9
+#define FACE_CENTRE 4 /* (the sample at the face's centre) */
 #define FACE_POINTS 13
 static void face_points(const i2m_image_t *img, const vface_t *f, double p[FACE_POINTS][3])
 {
@@ -431,16 +432,16 @@ static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const ck_grid_t
     int64_t end = (ch + 1) * CK_CHUNK < nf ? (ch + 1) * CK_CHUNK : nf;
     ck_progress_add(&pr, end - ch * CK_CHUNK); /* (counted as the chunk starts) */
     for (int64_t i = ch * CK_CHUNK; i < end; i++) {
-      double p[FACE_POINTS][3], m = 0.0, centre = 0.0;
+      double p[FACE_POINTS][3], m = 0.0, centre = 0.0; /* centre: its centre's distance */
       int ax = faces[i].axis;
       const double sb = img->spacing[(ax + 1) % 3], sc = img->spacing[(ax + 2) % 3];
       float share = (float)(sb * sc / FACE_SAMPLES);
       face_points(img, faces + i, p);
+      /* The corners count for the maximum only, and lie within half the face's diagonal of
+       * its centre: when the centre's distance plus that cannot beat the largest found, they
+       * cannot raise the maximum (the face's own is then a lower bound, which the search for
+       * the worst face below may take: a face it picks is recomputed whole). */
       for (int q = 0; q < FACE_POINTS; q++) {
-        /* The corners count for the maximum only, and lie within half the face's diagonal of
-         * its centre (sample 4): when the centre's distance plus that cannot beat the largest
-         * found, they cannot raise the maximum (the face's own is then a lower bound, which
-         * the search for the worst face below may take: a face it picks is recomputed whole). */
         if (q == FACE_SAMPLES && centre + 0.5 * sqrt(sb * sb + sc * sc) <= seen) break;
         double ub = isfinite(pd) ? pd + sqrt(i2m_sq(p[q][0] - prev[0]) + i2m_sq(p[q][1] - prev[1]) +
                                              i2m_sq(p[q][2] - prev[2]))
@@ -448,7 +449,7 @@ static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const ck_grid_t
         pd = grid_nearest(tg, p[q], ub, tri_dist2, tc, &hint);
         memcpy(prev, p[q], sizeof prev);
         m = fmax(m, pd);
-        centre = q == 4 ? pd : centre;
+        if (q == FACE_CENTRE) centre = pd;
         if (q < FACE_SAMPLES) {
           d[i * FACE_SAMPLES + q] = (float)pd;
           w[i * FACE_SAMPLES + q] = share;

@@ -34,6 +34,8 @@ tets_ok='1 2 4 8 1
 { verts 8; printf 'Tetrahedra\n6\n%s\nEnd\n' "$(echo "$tets_ok" | sed '1s/.*/2 1 4 8 1/')"; } > "$T/inverted.mesh"
 # face (1,2,4) on z=0 used three times: two more tets below it
 { verts 10; printf '0.5 0.5 -1 0\n0.2 0.6 -2 0\n'; printf 'Tetrahedra\n8\n%s\n1 4 2 9 1\n1 4 2 10 1\nEnd\n' "$tets_ok"; } > "$T/shared3.mesh"
+# a tet on the same side of the cube's bottom face (1,2,4) as the first tet: the two overlap
+{ verts 9; printf '0.7 0.3 0.5 0\n'; printf 'Tetrahedra\n7\n%s\n1 2 4 9 1\nEnd\n' "$tets_ok"; } > "$T/overlap.mesh"
 # an unused vertex
 { verts 9; printf '5 5 5 0\n'; printf 'Tetrahedra\n6\n%s\nEnd\n' "$tets_ok"; } > "$T/dangling.mesh"
 # vertex 9 = vertex 8, used by the first tet instead of 8
@@ -149,7 +151,8 @@ run_all() {
     expect "$ck" $f 0 "v['valid'] and abs(q['min_dihedral'] - math.degrees(math.acos(1/math.sqrt(3)))) < 1e-9 and abs(q['max_dihedral'] - 90) < 1e-9 and abs(q['max_radius_edge'] - math.sqrt(3)/2) < 1e-12 and abs(q['min_planar_angle'] - 45) < 1e-9" --max-ratio 2 --min-facet-angle 30
   done
   expect "$ck" inverted.mesh 1 "'inverted' in v['errors'] and v['inverted'] == 1 and v['first_inverted_tet'] == 0"
-  expect "$ck" shared3.mesh 1 "'nonmanifold_face' in v['errors'] and v['nonmanifold_faces'] == 1"
+  expect "$ck" shared3.mesh 1 "'nonmanifold_face' in v['errors'] and v['nonmanifold_faces'] == 1 and v['first_nonmanifold_tet'] == 0"
+  expect "$ck" overlap.mesh 1 "'overlapping' in v['errors'] and v['overlapping_faces'] == 1 and v['first_overlapping_tet'] == 0"
   expect "$ck" dangling.mesh 1 "v['errors'] == ['dangling_vertex'] and v['first_dangling_vertex'] == 8"
   expect "$ck" duplicate.mesh 1 "'duplicate_vertex' in v['errors'] and v['duplicate_vertices'] == 1"
   expect "$ck" range.mesh 1 "v['errors'] == ['index_out_of_range'] and v['first_index_out_of_range_tet'] == 1 and j['quality'] is None"

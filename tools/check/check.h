@@ -31,6 +31,18 @@ static inline int ck_meets_min(double v, double bound) { return v >= bound - fab
 static inline int ck_meets_max(double v, double bound) { return v <= bound + fabs(bound) * CK_BOUND_SLACK; }
 
 /* ---- the mesh as read from the file ---- */
+/* ---- loops on OpenMP threads ---- */
+#ifdef _OPENMP
+#define CK_OMP(x) _Pragma(x)
+#else
+#define CK_OMP(x)
+#endif
+/* The passes over the tets whose figures are sums or first extremes cut their range into
+ * CK_CHUNKS fixed chunks, run on any threads, and combine the chunks' figures in chunk order:
+ * the figures do not depend on the number of threads. */
+#define CK_CHUNKS 256
+static inline int64_t ck_chunk_begin(int64_t n, int c) { return n * c / CK_CHUNKS; }
+
 /* ---- progress lines of the long phases (progress.c) ---- */
 typedef struct {
   i2m_progress_t p;

@@ -19,12 +19,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#define CK_OMP(x) _Pragma(x)
-#else
-#define CK_OMP(x)
-#endif
-
 typedef double (*dist_fn)(const void *ctx, int64_t i, const double p[3]);
 
 static inline double gap(double lo, double hi, double x)
@@ -538,18 +532,77 @@ static int64_t label_slot(const ck_fidelity_t *f, int64_t value)
   return f->nlabels && f->labels[lo].value == value ? lo : -1;
 }
 
-/* A tet's vote: the piece it belongs to, the image component of its label that holds its
- * circumcentre, its volume. */
+/* The volume of a piece's tets per image component that holds their circumcentres: open
+ * addressing on the component, the slots in use listed for the next piece. */
 typedef struct {
-  int64_t piece, comp;
-  double w;
-} vote_t;
+  int64_t *key; /* the component, -1: empty */
+  double *w;
+  int64_t *used, n, cap;
+} votes_t;
 
-static int cmp_vote(const void *a, const void *b)
+static i2m_err_t votes_grow(votes_t *V)
 {
-  const vote_t *x = a, *y = b;
-  if (x->piece != y->piece) return x->piece < y->piece ? -1 : 1;
-  return (x->comp > y->comp) - (x->comp < y->comp);
+  const int64_t cap = V->cap ? 2 * V->cap : 64, n = V->n;
+  int64_t *key = V->key, *used = V->used;
+  double *w = V->w;
+  V->key = NULL, V->w = NULL, V->used = NULL;
+  i2m_err_t err = i2m_malloc((size_t)cap, sizeof *V->key, &V->key);
+  if (err == I2M_OK) err = i2m_malloc((size_t)cap, sizeof *V->w, &V->w);
+  if (err == I2M_OK) err = i2m_malloc((size_t)cap, sizeof *V->used, &V->used);
+  if (err == I2M_OK) {
+    for (int64_t i = 0; i < cap; i++) V->key[i] = -1;
+    V->cap = cap;
+    V->n = 0;
+    for (int64_t i = 0; i < n; i++) { /* (in the order they came: the sums' order is kept) */
+      int64_t h = (int64_t)((uint64_t)key[used[i]] * 0x9E3779B97F4A7C15ull >> 20) & (cap - 1);
+      while (V->key[h] >= 0) h = (h + 1) & (cap - 1);
+      V->key[h] = key[used[i]];
+      V->w[h] = w[used[i]];
+      V->used[V->n++] = h;
+    }
+  }
+  i2m_free(&key);
+  i2m_free(&w);
+  i2m_free(&used);
+  return err;
+}
+
+static i2m_err_t votes_add(votes_t *V, int64_t comp, double w)
+{
+  if (2 * (V->n + 1) > V->cap) I2M_CALL(votes_grow(V));
+  int64_t h = (int64_t)((uint64_t)comp * 0x9E3779B97F4A7C15ull >> 20) & (V->cap - 1);
+  while (V->key[h] >= 0 && V->key[h] != comp) h = (h + 1) & (V->cap - 1);
+  if (V->key[h] < 0) {
+    V->key[h] = comp;
+    V->w[h] = 0.0;
+    V->used[V->n++] = h;
+  }
+  V->w[h] += w;
+  return I2M_OK;
+}
+
+/* The component with the most volume (the smallest of those tied), and the table emptied. */
+static int64_t votes_best(votes_t *V)
+{
+  int64_t best = -1;
+  double bw = -1;
+  for (int64_t i = 0; i < V->n; i++) {
+    const int64_t h = V->used[i];
+    if (V->w[h] > bw || (V->w[h] == bw && V->key[h] < best)) {
+      bw = V->w[h];
+      best = V->key[h];
+    }
+    V->key[h] = -1;
+  }
+  V->n = 0;
+  return best;
+}
+
+static void votes_free(votes_t *V)
+{
+  i2m_free(&V->key);
+  i2m_free(&V->w);
+  i2m_free(&V->used);
 }
 
 /* The image component a tet's circumcentre lies in, if it is a voxel of the tet's label (-1). */
@@ -570,31 +623,29 @@ static int64_t centre_component(const ck_mesh_t *m, const double *g, const i2m_i
 static i2m_err_t component_pieces(const ck_mesh_t *m, const ck_topo_t *topo, const double *g, const i2m_image_t *img,
                                   const i2m_components_t *runs, const int64_t *comp, ck_fidelity_t *f, ck_progress_t *pr)
 {
-  vote_t *vt = NULL;
-  int64_t nvt = 0, *pieces = NULL;
+  int64_t *pieces = NULL, *cc = NULL, *first = NULL, *order = NULL;
+  votes_t V = {NULL, NULL, NULL, 0, 0};
   i2m_err_t err = I2M_OK;
-  I2M_CALL(i2m_malloc((size_t)(m->nt ? m->nt : 1), sizeof *vt, &vt));
-  for (int64_t t = 0; t < m->nt; t++) {
-    if (t % 65536 == 0 && t > 0) ck_progress_to(pr, 2 * m->nt + t);
-    const int64_t c = centre_component(m, g, img, runs, t);
-    if (c >= 0) vt[nvt++] = (vote_t){comp[t], c, fabs(topo->vol[t])};
+  const int64_t nt = m->nt;
+  I2M_CALL(i2m_malloc((size_t)(nt ? nt : 1), sizeof *cc, &cc));
+  I2M_CALL_GOTO(err, out, i2m_calloc((size_t)nt + 1, sizeof *first, &first));
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)(nt ? nt : 1), sizeof *order, &order));
+  CK_OMP("omp parallel for schedule(dynamic, 8192)")
+  for (int64_t t = 0; t < nt; t++) {
+    cc[t] = centre_component(m, g, img, runs, t);
+    if (t % 65536 == 65535) ck_progress_add(pr, 65536);
   }
-  qsort(vt, (size_t)nvt, sizeof *vt, cmp_vote);
+  /* the voting tets bucketed by piece, in the tets' order (a counting sort) */
+  for (int64_t t = 0; t < nt; t++) first[comp[t] + 1] += cc[t] >= 0;
+  for (int64_t t = 0; t < nt; t++) first[t + 1] += first[t];
+  for (int64_t t = 0; t < nt; t++)
+    if (cc[t] >= 0) order[first[comp[t]]++] = t;
+  /* (first[p] now ends bucket p, which starts where bucket p - 1 ends) */
   I2M_CALL_GOTO(err, out, i2m_calloc((size_t)(runs->nruns ? runs->nruns : 1), sizeof *pieces, &pieces));
-  for (int64_t i = 0, j; i < nvt; i = j) { /* each piece: the component with the most volume */
-    int64_t best = -1;
-    double bw = -1;
-    for (j = i; j < nvt && vt[j].piece == vt[i].piece;) {
-      int64_t k = j;
-      double w = 0;
-      for (; k < nvt && vt[k].piece == vt[i].piece && vt[k].comp == vt[j].comp; k++) w += vt[k].w;
-      if (w > bw) {
-        bw = w;
-        best = vt[j].comp;
-      }
-      j = k;
-    }
-    pieces[best]++;
+  for (int64_t p = 0, i = 0; p < nt; i = first[p++]) { /* each piece: the component with the most volume */
+    if (first[p] == i) continue;
+    for (int64_t k = i; k < first[p]; k++) I2M_CALL_GOTO(err, out, votes_add(&V, cc[order[k]], fabs(topo->vol[order[k]])));
+    pieces[votes_best(&V)]++;
   }
   for (int64_t r = 0; r < runs->nruns; r++) {
     if (runs->par[r] != r || runs->lab[r] == 0) continue;
@@ -603,8 +654,11 @@ static i2m_err_t component_pieces(const ck_mesh_t *m, const ck_topo_t *topo, con
     f->components[f->ncomponents++] = (ck_component_t){img->label_value[runs->lab[r]], runs->size[r], pieces[r]};
   }
 out:
-  i2m_free(&vt);
+  i2m_free(&cc);
+  i2m_free(&first);
+  i2m_free(&order);
   i2m_free(&pieces);
+  votes_free(&V);
   return err;
 }
 
@@ -615,7 +669,8 @@ static i2m_err_t label_table(const ck_mesh_t *m, const ck_topo_t *topo, const do
   I2M_CALL(i2m_malloc((size_t)(m->nt + img->nlabels), sizeof *vals, &vals));
   for (int l = 1; l < img->nlabels; l++)
     if (img->label_count[l] > 0) vals[nv++] = img->label_value[l];
-  for (int64_t t = 0; t < m->nt; t++) vals[nv++] = m->tet_label[t];
+  for (int64_t t = 0; t < m->nt; t++) /* (a run of one label, common in the tets' order, once) */
+    if (t == 0 || m->tet_label[t] != m->tet_label[t - 1]) vals[nv++] = m->tet_label[t];
   qsort(vals, (size_t)nv, sizeof *vals, cmp_i64);
   int64_t nd = 0; /* image values are never 0 (l >= 1); tets of label 0 get a slot too */
   for (int64_t i = 0; i < nv; i++)

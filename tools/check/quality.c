@@ -61,18 +61,13 @@ static double radius_edge(const double *p[4])
   return emin > 0 ? r / sqrt(emin) : INFINITY;
 }
 
-static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
+/* The figures of tets [lo, hi) into *q (zeroed but for the extremes' starting values), their
+ * ratios into ratio[]; *sum and *nfin: the finite ratios' sum and count. */
+static void tet_range(const ck_mesh_t *m, int64_t lo_t, int64_t hi_t, double *ratio, ck_quality_t *q, double *sum,
+                      int64_t *nfin)
 {
   static const double below[4] = {5.0, 10.0, 15.0, 20.0}, above[2] = {160.0, 170.0};
-  q->min_dihedral = 180.0;
-  q->max_dihedral = 0.0;
-  q->min_dihedral_tet = q->max_dihedral_tet = q->max_ratio_tet = -1;
-  double sum = 0.0;
-  int64_t nfin = 0;
-  ck_progress_t pr;
-  ck_progress_begin(&pr, "quality, dihedral angles and radius-edge ratios", "tets", m->nt);
-  for (int64_t t = 0; t < m->nt; t++) {
-    if (t % 65536 == 0 && t > 0) ck_progress_to(&pr, t);
+  for (int64_t t = lo_t; t < hi_t; t++) {
     const double *p[4];
     for (int i = 0; i < 4; i++) p[i] = m->xyz + 3 * m->tet[4 * t + i];
     double q4[4][3];
@@ -92,11 +87,11 @@ static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
     }
     for (int k = 0; k < 4; k++) q->dihedral_below[k] += !ck_meets_min(lo, below[k]); /* (NaN counts as below) */
     for (int k = 0; k < 2; k++) q->dihedral_above[k] += !ck_meets_max(hi, above[k]);
-    if (lo < q->min_dihedral || q->min_dihedral_tet < 0) {
+    if (lo < q->min_dihedral || t == 0) { /* (the first tet of the mesh in any case, as one loop did) */
       q->min_dihedral = lo;
       q->min_dihedral_tet = t;
     }
-    if (hi > q->max_dihedral || q->max_dihedral_tet < 0) {
+    if (hi > q->max_dihedral || t == 0) {
       q->max_dihedral = hi;
       q->max_dihedral_tet = t;
     }
@@ -108,13 +103,104 @@ static void tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
     if (!ck_meets_max(ratio[t], q->ratio_bound)) q->ratio_above_bound++; /* (a NaN figure fails every bound) */
     if (!ck_meets_max(ratio[t], 2.0)) q->ratio_above_2++;
     if (isfinite(ratio[t])) {
-      sum += ratio[t];
-      nfin++;
+      *sum += ratio[t];
+      (*nfin)++;
     }
   }
-  q->ratio_mean = nfin ? sum / (double)nfin : 0.0;
+}
+
+/* The figures of chunk c after those of the chunks before it (as one loop over the tets would
+ * find them: the first extreme kept on ties, a NaN ratio first). */
+static void tet_merge(ck_quality_t *q, const ck_quality_t *c)
+{
+  for (int b = 0; b < CK_HIST_BINS; b++) q->dihedral_hist[b] += c->dihedral_hist[b];
+  for (int k = 0; k < 4; k++) q->dihedral_below[k] += c->dihedral_below[k];
+  for (int k = 0; k < 2; k++) q->dihedral_above[k] += c->dihedral_above[k];
+  if (c->min_dihedral_tet >= 0 && (q->min_dihedral_tet < 0 || c->min_dihedral < q->min_dihedral)) {
+    q->min_dihedral = c->min_dihedral;
+    q->min_dihedral_tet = c->min_dihedral_tet;
+  }
+  if (c->max_dihedral_tet >= 0 && (q->max_dihedral_tet < 0 || c->max_dihedral > q->max_dihedral)) {
+    q->max_dihedral = c->max_dihedral;
+    q->max_dihedral_tet = c->max_dihedral_tet;
+  }
+  if (c->max_ratio_tet >= 0 && (q->max_ratio_tet < 0 || c->max_ratio > q->max_ratio ||
+                                (isnan(c->max_ratio) && !isnan(q->max_ratio)))) {
+    q->max_ratio = c->max_ratio;
+    q->max_ratio_tet = c->max_ratio_tet;
+  }
+  q->ratio_above_bound += c->ratio_above_bound;
+  q->ratio_above_2 += c->ratio_above_2;
+}
+
+/* Dihedral angles and radius-edge ratios of every tet, in fixed chunks on the threads. */
+static i2m_err_t tet_quality(const ck_mesh_t *m, double *ratio, ck_quality_t *q)
+{
+  ck_quality_t *part = NULL;
+  double sum[CK_CHUNKS] = {0};
+  int64_t nfin[CK_CHUNKS] = {0};
+  I2M_CALL(i2m_calloc(CK_CHUNKS, sizeof *part, &part));
+  ck_progress_t pr;
+  ck_progress_begin(&pr, "quality, dihedral angles and radius-edge ratios", "tets", m->nt);
+  CK_OMP("omp parallel for schedule(dynamic, 1)")
+  for (int c = 0; c < CK_CHUNKS; c++) {
+    ck_quality_t *x = &part[c];
+    x->ratio_bound = q->ratio_bound;
+    x->min_dihedral = 180.0;
+    x->min_dihedral_tet = x->max_dihedral_tet = x->max_ratio_tet = -1;
+    const int64_t lo = ck_chunk_begin(m->nt, c), hi = ck_chunk_begin(m->nt, c + 1);
+    tet_range(m, lo, hi, ratio, x, &sum[c], &nfin[c]);
+    ck_progress_add(&pr, hi - lo);
+  }
+  q->min_dihedral = 180.0;
+  q->max_dihedral = 0.0;
+  q->min_dihedral_tet = q->max_dihedral_tet = q->max_ratio_tet = -1;
+  double total = 0.0;
+  int64_t n = 0;
+  for (int c = 0; c < CK_CHUNKS; c++) {
+    tet_merge(q, &part[c]);
+    total += sum[c];
+    n += nfin[c];
+  }
+  q->ratio_mean = n ? total / (double)n : 0.0;
+  i2m_free(&part);
   ck_progress_set(&pr, m->nt);
   ck_progress_end(&pr);
+  return I2M_OK;
+}
+
+/* The smallest planar angle of the interface triangles, in fixed chunks on the threads. */
+static void planar_angles(const ck_mesh_t *m, const ck_iface_t *f, ck_quality_t *q)
+{
+  double amin[CK_CHUNKS];
+  int64_t tmin[CK_CHUNKS], b30[CK_CHUNKS] = {0}, bb[CK_CHUNKS] = {0};
+  const double facet_bound = q->facet_angle_bound;
+  CK_OMP("omp parallel for schedule(dynamic, 4)")
+  for (int c = 0; c < CK_CHUNKS; c++) {
+    amin[c] = 180.0;
+    tmin[c] = -1;
+    for (int64_t i = ck_chunk_begin(f->n, c); i < ck_chunk_begin(f->n, c + 1); i++) {
+      const int32_t *v = f->v + 3 * i;
+      double a = ck_min_angle_deg(m->xyz + 3 * v[0], m->xyz + 3 * v[1], m->xyz + 3 * v[2]);
+      if (a < amin[c]) {
+        amin[c] = a;
+        tmin[c] = i;
+      }
+      b30[c] += !ck_meets_min(a, 30.0);
+      bb[c] += !ck_meets_min(a, facet_bound);
+    }
+  }
+  q->ntri = f->n;
+  q->min_planar_angle = f->n ? 180.0 : 0.0;
+  q->min_planar_tri = -1;
+  for (int c = 0; c < CK_CHUNKS; c++) {
+    if (tmin[c] >= 0 && amin[c] < q->min_planar_angle) {
+      q->min_planar_angle = amin[c];
+      q->min_planar_tri = tmin[c];
+    }
+    q->planar_below_30 += b30[c];
+    q->planar_below_bound += bb[c];
+  }
 }
 
 i2m_err_t ck_quality(const ck_mesh_t *m, const ck_topo_t *topo, double ratio_bound,
@@ -125,25 +211,14 @@ i2m_err_t ck_quality(const ck_mesh_t *m, const ck_topo_t *topo, double ratio_bou
   q->ratio_bound = ratio_bound;
   q->facet_angle_bound = facet_bound;
   I2M_CALL(i2m_malloc((size_t)m->nt, sizeof *ratio, &ratio));
-  tet_quality(m, ratio, q);
-  q->ratio_p50 = ck_percentile(ratio, m->nt, 0.50);
-  q->ratio_p90 = ck_percentile(ratio, m->nt, 0.90);
-  q->ratio_p99 = ck_percentile(ratio, m->nt, 0.99);
-  q->ratio_p999 = ck_percentile(ratio, m->nt, 0.999);
-  i2m_free(&ratio);
-  const ck_iface_t *f = &topo->iface;
-  q->ntri = f->n;
-  q->min_planar_angle = f->n ? 180.0 : 0.0;
-  q->min_planar_tri = -1;
-  for (int64_t i = 0; i < f->n; i++) {
-    const int32_t *v = f->v + 3 * i;
-    double a = ck_min_angle_deg(m->xyz + 3 * v[0], m->xyz + 3 * v[1], m->xyz + 3 * v[2]);
-    if (a < q->min_planar_angle) {
-      q->min_planar_angle = a;
-      q->min_planar_tri = i;
-    }
-    q->planar_below_30 += !ck_meets_min(a, 30.0);
-    q->planar_below_bound += !ck_meets_min(a, facet_bound);
+  i2m_err_t err = tet_quality(m, ratio, q);
+  if (err == I2M_OK) {
+    q->ratio_p50 = ck_percentile(ratio, m->nt, 0.50);
+    q->ratio_p90 = ck_percentile(ratio, m->nt, 0.90);
+    q->ratio_p99 = ck_percentile(ratio, m->nt, 0.99);
+    q->ratio_p999 = ck_percentile(ratio, m->nt, 0.999);
+    planar_angles(m, &topo->iface, q);
   }
-  return I2M_OK;
+  i2m_free(&ratio);
+  return err;
 }

@@ -18,7 +18,7 @@ static const int FACE[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
 
 typedef struct {
   uint64_t key; /* (middle id << 32) | largest id */
-  int64_t id;   /* 4 t + f */
+  int64_t id;   /* (4 t + f) << 1 | the parity of the face's sorting permutation */
 } fent_t;
 
 static int cmp_fent(const void *a, const void *b)
@@ -75,61 +75,115 @@ static void isort_fent(fent_t *a, int64_t n)
   }
 }
 
-/* Face matching: fills topo->nb and the face counts. */
+/* The vertices of tet t in increasing order. */
+static void sorted_tet(const ck_mesh_t *m, int64_t t, int64_t q[4])
+{
+  const int64_t *tv = m->tet + 4 * t;
+  for (int i = 0; i < 4; i++) {
+    int64_t x = tv[i];
+    int j = i;
+    for (; j > 0 && q[j - 1] > x; j--) q[j] = q[j - 1];
+    q[j] = x;
+  }
+}
+
+/* The face counts of a range of buckets (one chunk's; chunks combine in order). */
+typedef struct {
+  int64_t boundary, interior, nonmanifold, first_nonmanifold, overlapping, first_overlapping;
+} face_part_t;
+
+/* Matches the faces of buckets [b0, b1) (each sorted: equal keys adjacent). */
+static void match_buckets(const int8_t *sgn, const fent_t *ent, const int64_t *start, int64_t b0,
+                          int64_t b1, int64_t *nb, face_part_t *c)
+{
+  c->first_nonmanifold = c->first_overlapping = -1;
+  for (int64_t b = b0; b < b1; b++)
+    for (int64_t i = start[b]; i < start[b + 1];) {
+      int64_t j = i + 1;
+      while (j < start[b + 1] && ent[j].key == ent[i].key) j++;
+      const int64_t ea = ent[i].id, eb = ent[i + 1 < j ? i + 1 : i].id, ia = ea >> 1, ib = eb >> 1;
+      if (j - i == 1) {
+        nb[ia] = -1;
+        c->boundary++;
+      } else if (j - i == 2) {
+        nb[ia] = ib;
+        nb[ib] = ia;
+        c->interior++;
+        if (sgn[ia / 4] > 0 && sgn[ib / 4] > 0 && (ea & 1) == (eb & 1)) { /* (the same side of the face) */
+          if (c->overlapping++ == 0) c->first_overlapping = ia / 4;
+        }
+      } else {
+        for (int64_t k = i; k < j; k++) nb[ent[k].id >> 1] = -2;
+        if (c->nonmanifold++ == 0) c->first_nonmanifold = ia / 4;
+      }
+      i = j;
+    }
+}
+
+/* Face matching: fills topo->nb and the face counts.  The faces are bucketed by their smallest
+ * vertex (counted and placed by the threads: the order within a bucket is then the threads',
+ * and sorting each bucket by (key, face) makes it one order again). */
 static i2m_err_t match_faces(const ck_mesh_t *m, const int8_t *sgn, ck_validity_t *v, ck_topo_t *topo)
 {
-  int64_t *start = NULL;
+  int64_t *start = NULL, *next = NULL;
   fent_t *ent = NULL;
+  face_part_t part[CK_CHUNKS] = {{0}};
   i2m_err_t err = I2M_OK;
-  int64_t nf = 4 * m->nt;
+  const int64_t nf = 4 * m->nt, nv = m->nv;
   I2M_CALL(i2m_malloc((size_t)nf, sizeof *topo->nb, &topo->nb));
-  I2M_CALL(i2m_calloc((size_t)m->nv + 1, sizeof *start, &start));
+  I2M_CALL(i2m_calloc((size_t)nv + 1, sizeof *start, &start));
+  I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nv + 1, sizeof *next, &next));
   I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nf, sizeof *ent, &ent));
-  int64_t s[3];
-  for (int64_t id = 0; id < nf; id++) {
-    face_of(m, id, s);
-    start[s[0] + 1]++;
+  /* a tet with sorted vertices a < b < c < d has three faces in bucket a and one (b c d) in b */
+  CK_OMP("omp parallel for schedule(static)")
+  for (int64_t t = 0; t < m->nt; t++) {
+    int64_t q[4];
+    sorted_tet(m, t, q);
+    CK_OMP("omp atomic")
+    start[q[0] + 1] += 3;
+    CK_OMP("omp atomic")
+    start[q[1] + 1]++;
   }
-  for (int64_t i = 0; i < m->nv; i++) start[i + 1] += start[i];
-  for (int64_t id = 0; id < nf; id++) {
-    face_of(m, id, s);
-    fent_t *e = &ent[start[s[0]]++];
-    e->key = ((uint64_t)s[1] << 32) | (uint64_t)s[2];
-    e->id = id;
+  for (int64_t i = 0; i < nv; i++) start[i + 1] += start[i];
+  memcpy(next, start, (size_t)(nv + 1) * sizeof *next);
+  CK_OMP("omp parallel for schedule(static)")
+  for (int64_t t = 0; t < m->nt; t++) {
+    int64_t q[4], at, bt;
+    sorted_tet(m, t, q);
+    CK_OMP("omp atomic capture")
+    { at = next[q[0]]; next[q[0]] += 3; }
+    CK_OMP("omp atomic capture")
+    bt = next[q[1]]++;
+    for (int f = 0; f < 4; f++) {
+      int64_t s[3];
+      const int par = face_of(m, 4 * t + f, s);
+      ent[s[0] == q[0] ? at++ : bt] = (fent_t){((uint64_t)s[1] << 32) | (uint64_t)s[2], (4 * t + f) << 1 | par};
+    }
   }
-  for (int64_t i = m->nv; i > 0; i--) start[i] = start[i - 1]; /* restore bucket starts */
-  start[0] = 0;
-  for (int64_t b = 0; b < m->nv; b++) {
+  CK_OMP("omp parallel for schedule(dynamic, 4096)")
+  for (int64_t b = 0; b < nv; b++) {
     int64_t n = start[b + 1] - start[b];
     if (n < 32)
       isort_fent(ent + start[b], n);
     else
       qsort(ent + start[b], (size_t)n, sizeof *ent, cmp_fent);
   }
+  CK_OMP("omp parallel for schedule(dynamic, 1)")
+  for (int c = 0; c < CK_CHUNKS; c++)
+    match_buckets(sgn, ent, start, ck_chunk_begin(nv, c), ck_chunk_begin(nv, c + 1), topo->nb, &part[c]);
   v->first_nonmanifold_tet = v->first_overlapping_tet = -1;
-  for (int64_t b = 0; b < m->nv; b++)
-    for (int64_t i = start[b]; i < start[b + 1];) {
-      int64_t j = i + 1;
-      while (j < start[b + 1] && ent[j].key == ent[i].key) j++;
-      int64_t ia = ent[i].id, ib = ent[i + 1 < j ? i + 1 : i].id;
-      if (j - i == 1) {
-        topo->nb[ia] = -1;
-        v->boundary_faces++;
-      } else if (j - i == 2) {
-        topo->nb[ia] = ib;
-        topo->nb[ib] = ia;
-        v->interior_faces++;
-        if (sgn[ia / 4] > 0 && sgn[ib / 4] > 0 && face_of(m, ia, s) == face_of(m, ib, s)) {
-          if (v->overlapping_faces++ == 0) v->first_overlapping_tet = ia / 4;
-        }
-      } else {
-        for (int64_t k = i; k < j; k++) topo->nb[ent[k].id] = -2;
-        if (v->nonmanifold_faces++ == 0) v->first_nonmanifold_tet = ia / 4;
-      }
-      i = j;
-    }
+  for (int c = 0; c < CK_CHUNKS; c++) {
+    const face_part_t *x = &part[c];
+    if (x->nonmanifold && !v->nonmanifold_faces) v->first_nonmanifold_tet = x->first_nonmanifold;
+    if (x->overlapping && !v->overlapping_faces) v->first_overlapping_tet = x->first_overlapping;
+    v->boundary_faces += x->boundary;
+    v->interior_faces += x->interior;
+    v->nonmanifold_faces += x->nonmanifold;
+    v->overlapping_faces += x->overlapping;
+  }
 out:
   i2m_free(&start);
+  i2m_free(&next);
   i2m_free(&ent);
   return err;
 }
@@ -216,35 +270,47 @@ static int ranks_below(int64_t a, int64_t b)
   return a != b && (a == 0 || (b != 0 && a < b));
 }
 
+/* Face id of tet t's faces that is an interface triangle, written as the n-th triangle when
+ * f->v is set (else only counted); returns whether it is one. */
+static int interface_face(const ck_mesh_t *m, const ck_topo_t *topo, int64_t id, ck_iface_t *f, int64_t n)
+{
+  int64_t nb = topo->nb[id], lt = m->tet_label[id / 4], lo;
+  if (nb == -2 || (nb >= 0 && nb < id)) return 0;
+  lo = nb >= 0 ? m->tet_label[nb / 4] : 0;
+  if (lo == lt) return 0;
+  if (f->v) {
+    const int64_t *tv = m->tet + 4 * (id / 4);
+    const int *F = FACE[id % 4];
+    int keep = ranks_below(lo, lt); /* the face's normal points out of this tet, to lo */
+    f->v[3 * n] = (int32_t)tv[F[0]];
+    f->v[3 * n + 1] = (int32_t)tv[keep ? F[1] : F[2]];
+    f->v[3 * n + 2] = (int32_t)tv[keep ? F[2] : F[1]];
+    f->lab[2 * n] = lt < lo ? lt : lo;
+    f->lab[2 * n + 1] = lt < lo ? lo : lt;
+  }
+  return 1;
+}
+
 /* Interface triangles from the tetrahedra: boundary faces (label vs 0) and faces between
- * two labels, oriented outward (from the higher-ranked label to the lower). */
+ * two labels, oriented outward (from the higher-ranked label to the lower), in the faces'
+ * order: counted per chunk of tets, then written at each chunk's offset, on the threads. */
 static i2m_err_t derive_interfaces(const ck_mesh_t *m, ck_topo_t *topo)
 {
   ck_iface_t *f = &topo->iface;
-  int64_t n = 0;
+  int64_t first[CK_CHUNKS + 1] = {0};
   for (int pass = 0; pass < 2; pass++) {
     if (pass == 1) {
-      I2M_CALL(i2m_malloc((size_t)n * 3, sizeof *f->v, &f->v));
-      I2M_CALL(i2m_malloc((size_t)n * 2, sizeof *f->lab, &f->lab));
-      f->n = n;
-      n = 0;
+      for (int c = 0; c < CK_CHUNKS; c++) first[c + 1] += first[c];
+      f->n = first[CK_CHUNKS];
+      I2M_CALL(i2m_malloc((size_t)f->n * 3, sizeof *f->v, &f->v));
+      I2M_CALL(i2m_malloc((size_t)f->n * 2, sizeof *f->lab, &f->lab));
     }
-    for (int64_t id = 0; id < 4 * m->nt; id++) {
-      int64_t nb = topo->nb[id], lt = m->tet_label[id / 4], lo;
-      if (nb == -2 || (nb >= 0 && nb < id)) continue;
-      lo = nb >= 0 ? m->tet_label[nb / 4] : 0;
-      if (lo == lt) continue;
-      if (pass == 1) {
-        const int64_t *tv = m->tet + 4 * (id / 4);
-        const int *F = FACE[id % 4];
-        int keep = ranks_below(lo, lt); /* the face's normal points out of this tet, to lo */
-        f->v[3 * n] = (int32_t)tv[F[0]];
-        f->v[3 * n + 1] = (int32_t)tv[keep ? F[1] : F[2]];
-        f->v[3 * n + 2] = (int32_t)tv[keep ? F[2] : F[1]];
-        f->lab[2 * n] = lt < lo ? lt : lo;
-        f->lab[2 * n + 1] = lt < lo ? lo : lt;
-      }
-      n++;
+    CK_OMP("omp parallel for schedule(dynamic, 1)")
+    for (int c = 0; c < CK_CHUNKS; c++) {
+      int64_t n = pass ? first[c] : 0;
+      for (int64_t id = 4 * ck_chunk_begin(m->nt, c); id < 4 * ck_chunk_begin(m->nt, c + 1); id++)
+        n += interface_face(m, topo, id, f, n);
+      if (!pass) first[c + 1] = n;
     }
   }
   return I2M_OK;
@@ -322,35 +388,69 @@ static int cmp_pair(const void *x, const void *y)
   return (a[1] > b[1]) - (a[1] < b[1]);
 }
 
-/* Number of distinct label pairs among the interface triangles. */
+/* Number of distinct label pairs among the interface triangles (runs of one pair, common in
+ * the tets' order, kept once before the sort). */
 static i2m_err_t count_pairs(const ck_iface_t *f, int64_t *npairs)
 {
-  int64_t *p = NULL, n = 0;
+  int64_t *p = NULL, n = 0, k = 0;
   I2M_CALL(i2m_malloc((size_t)f->n * 2, sizeof *p, &p));
-  if (f->n > 0) memcpy(p, f->lab, (size_t)f->n * 2 * sizeof *p);
-  sort_n(p, f->n, 2 * sizeof *p, cmp_pair);
-  for (int64_t i = 0; i < f->n; i++) n += i == 0 || cmp_pair(p + 2 * i, p + 2 * i - 2) != 0;
+  for (int64_t i = 0; i < f->n; i++)
+    if (k == 0 || cmp_pair(f->lab + 2 * i, p + 2 * k - 2) != 0) {
+      p[2 * k] = f->lab[2 * i];
+      p[2 * k + 1] = f->lab[2 * i + 1];
+      k++;
+    }
+  sort_n(p, k, 2 * sizeof *p, cmp_pair);
+  for (int64_t i = 0; i < k; i++) n += i == 0 || cmp_pair(p + 2 * i, p + 2 * i - 2) != 0;
   i2m_free(&p);
   *npairs = n;
   return I2M_OK;
 }
 
+/* The orientation figures of a range of tets (one chunk's; chunks combine in order). */
+typedef struct {
+  int64_t inverted, first_inverted, degenerate, first_degenerate, min_volume_tet;
+  double min_volume, total_volume;
+} geom_part_t;
+
+static void geometry_range(const ck_mesh_t *m, int64_t lo, int64_t hi, ck_topo_t *topo, int8_t *sgn, geom_part_t *c)
+{
+  c->first_inverted = c->first_degenerate = c->min_volume_tet = -1;
+  for (int64_t t = lo; t < hi; t++) {
+    const int64_t *tv = m->tet + 4 * t;
+    const double *a = m->xyz + 3 * tv[0], *b = m->xyz + 3 * tv[1], *cc = m->xyz + 3 * tv[2],
+                 *d = m->xyz + 3 * tv[3];
+    sgn[t] = (int8_t)ck_orient3d(a, b, cc, d);
+    topo->vol[t] = ck_volume6(a, b, cc, d) / 6.0;
+    if (sgn[t] < 0 && c->inverted++ == 0) c->first_inverted = t;
+    if (sgn[t] == 0 && c->degenerate++ == 0) c->first_degenerate = t;
+    if (c->min_volume_tet < 0 || topo->vol[t] < c->min_volume) {
+      c->min_volume = topo->vol[t];
+      c->min_volume_tet = t;
+    }
+    c->total_volume += topo->vol[t];
+  }
+}
+
+/* Exact orientation and volume of every tet, in fixed chunks on the threads. */
 static void geometry(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo, int8_t *sgn)
 {
+  geom_part_t part[CK_CHUNKS] = {{0}};
+  CK_OMP("omp parallel for schedule(dynamic, 1)")
+  for (int c = 0; c < CK_CHUNKS; c++)
+    geometry_range(m, ck_chunk_begin(m->nt, c), ck_chunk_begin(m->nt, c + 1), topo, sgn, &part[c]);
   v->first_inverted = v->first_degenerate = v->min_volume_tet = -1;
-  for (int64_t t = 0; t < m->nt; t++) {
-    const int64_t *tv = m->tet + 4 * t;
-    const double *a = m->xyz + 3 * tv[0], *b = m->xyz + 3 * tv[1], *c = m->xyz + 3 * tv[2],
-                 *d = m->xyz + 3 * tv[3];
-    sgn[t] = (int8_t)ck_orient3d(a, b, c, d);
-    topo->vol[t] = ck_volume6(a, b, c, d) / 6.0;
-    if (sgn[t] < 0 && v->inverted++ == 0) v->first_inverted = t;
-    if (sgn[t] == 0 && v->degenerate++ == 0) v->first_degenerate = t;
-    if (v->min_volume_tet < 0 || topo->vol[t] < v->min_volume) {
-      v->min_volume = topo->vol[t];
-      v->min_volume_tet = t;
+  for (int c = 0; c < CK_CHUNKS; c++) {
+    const geom_part_t *x = &part[c];
+    if (x->inverted && !v->inverted) v->first_inverted = x->first_inverted;
+    if (x->degenerate && !v->degenerate) v->first_degenerate = x->first_degenerate;
+    v->inverted += x->inverted;
+    v->degenerate += x->degenerate;
+    if (x->min_volume_tet >= 0 && (v->min_volume_tet < 0 || x->min_volume < v->min_volume)) {
+      v->min_volume = x->min_volume;
+      v->min_volume_tet = x->min_volume_tet;
     }
-    v->total_volume += topo->vol[t];
+    v->total_volume += x->total_volume;
   }
 }
 

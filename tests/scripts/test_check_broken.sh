@@ -43,6 +43,8 @@ tets_ok='1 2 4 8 1
 # a vertex id beyond the 8 vertices, and one below 1
 { verts 8; printf 'Tetrahedra\n6\n%s\nEnd\n' "$(echo "$tets_ok" | sed '2s/.*/1 3 7 12 1/')"; } > "$T/range.mesh"
 { verts 8; printf 'Tetrahedra\n6\n%s\nEnd\n' "$(echo "$tets_ok" | sed '2s/.*/0 3 7 8 1/')"; } > "$T/range0.mesh"
+# a tet that names one vertex twice (zero volume; all four of its faces hold its smallest id)
+{ verts 8; printf 'Tetrahedra\n7\n%s\n1 1 2 3 1\nEnd\n' "$tets_ok"; } > "$T/repeat.mesh"
 # a flat (zero-volume) tet: four coplanar corners of the cube's bottom face
 { verts 8; printf 'Tetrahedra\n7\n%s\n1 2 4 3 1\nEnd\n' "$tets_ok"; } > "$T/flat.mesh"
 # a vertex with a NaN coordinate
@@ -158,6 +160,7 @@ run_all() {
   expect "$ck" range.mesh 1 "v['errors'] == ['index_out_of_range'] and v['first_index_out_of_range_tet'] == 1 and j['quality'] is None"
   expect "$ck" range0.mesh 1 "'index_out_of_range' in v['errors']"
   expect "$ck" nan.mesh 1 "'nonfinite_vertex' in v['errors'] and v['first_nonfinite_vertex'] == 8 and j['quality'] is None"
+  expect "$ck" repeat.mesh 1 "'degenerate' in v['errors'] and v['degenerate'] == 1 and v['first_degenerate_tet'] == 6 and 2 * v['interior_faces'] + v['boundary_faces'] == 28 and v['nonmanifold_faces'] == 0"
   expect "$ck" flat.mesh 1 "'degenerate' in v['errors'] and v['degenerate'] == 1 and v['first_degenerate_tet'] == 6"
   expect "$ck" badtri.mesh 1 "'file_triangle_not_interface' in v['errors'] and 'interface_missing_from_file' in v['errors'] and v['file_triangles_not_interface'] == 1 and v['file_triangle_label_mismatch'] == 1"
   for f in truncated.mesh empty.mesh junk.mesh keyword.mesh ctrl.mesh hugecount.mesh missing.mesh noend.mesh \

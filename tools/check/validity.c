@@ -134,7 +134,8 @@ static i2m_err_t match_faces(const ck_mesh_t *m, const int8_t *sgn, ck_validity_
   I2M_CALL(i2m_calloc((size_t)nv + 1, sizeof *start, &start));
   I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nv + 1, sizeof *next, &next));
   I2M_CALL_GOTO(err, out, i2m_malloc((size_t)nf, sizeof *ent, &ent));
-  /* a tet with sorted vertices a < b < c < d has three faces in bucket a and one (b c d) in b */
+  /* a tet with sorted vertices a <= b <= c <= d has three faces in bucket a and one (b c d) in
+   * b (when a = b, all four in a: the fourth takes b's slot) */
   CK_OMP("omp parallel for schedule(static)")
   for (int64_t t = 0; t < m->nt; t++) {
     int64_t q[4];
@@ -154,10 +155,11 @@ static i2m_err_t match_faces(const ck_mesh_t *m, const int8_t *sgn, ck_validity_
     { at = next[q[0]]; next[q[0]] += 3; }
     CK_OMP("omp atomic capture")
     bt = next[q[1]]++;
-    for (int f = 0; f < 4; f++) {
+    for (int f = 0, in_a = 0; f < 4; f++) {
       int64_t s[3];
       const int par = face_of(m, 4 * t + f, s);
-      ent[s[0] == q[0] ? at++ : bt] = (fent_t){((uint64_t)s[1] << 32) | (uint64_t)s[2], (4 * t + f) << 1 | par};
+      const int64_t slot = s[0] == q[0] && in_a < 3 ? at + in_a++ : bt;
+      ent[slot] = (fent_t){((uint64_t)s[1] << 32) | (uint64_t)s[2], (4 * t + f) << 1 | par};
     }
   }
   CK_OMP("omp parallel for schedule(dynamic, 4096)")

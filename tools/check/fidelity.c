@@ -642,9 +642,10 @@ static i2m_err_t component_pieces(const ck_mesh_t *m, const ck_topo_t *topo, con
     if (cc[t] >= 0) order[first[comp[t]]++] = t;
   /* (first[p] now ends bucket p, which starts where bucket p - 1 ends) */
   I2M_CALL_GOTO(err, out, i2m_calloc((size_t)(runs->nruns ? runs->nruns : 1), sizeof *pieces, &pieces));
-  for (int64_t p = 0, i = 0; p < nt; i = first[p++]) { /* each piece: the component with the most volume */
-    if (first[p] == i) continue;
-    for (int64_t k = i; k < first[p]; k++) I2M_CALL_GOTO(err, out, votes_add(&V, cc[order[k]], fabs(topo->vol[order[k]])));
+  for (int64_t p = 0; p < nt; p++) { /* each piece: the component with the most volume */
+    const int64_t begin = p ? first[p - 1] : 0, end = first[p];
+    if (begin == end) continue;
+    for (int64_t k = begin; k < end; k++) I2M_CALL_GOTO(err, out, votes_add(&V, cc[order[k]], fabs(topo->vol[order[k]])));
     pieces[votes_best(&V)]++;
   }
   for (int64_t r = 0; r < runs->nruns; r++) {

@@ -353,8 +353,11 @@ static inline int64_t ck_grid_cell(const ck_grid_t *g, int a, double x)
   return (int64_t)u;
 }
 
-/** Files items 0..nitems-1 in every cell their box (from @p bbox) meets; g->lo, h, n set. */
-i2m_err_t ck_grid_build(ck_grid_t *g, int64_t nitems, ck_bbox_fn bbox, const void *ctx);
+/** Files items 0..nitems-1 in every cell their box (from @p bbox) meets; g->lo, h, n set.
+ *  Runs on the threads (@p bbox must be safe to call from several): the items of a cell are
+ *  in the threads' order, which no search that takes the nearest or the first in another
+ *  order depends on.  @p pr (or NULL): a progress line, advanced by 2 * nitems. */
+i2m_err_t ck_grid_build(ck_grid_t *g, int64_t nitems, ck_bbox_fn bbox, const void *ctx, ck_progress_t *pr);
 void ck_grid_free(ck_grid_t *g);
 
 /* ---- helpers ---- */

@@ -6,6 +6,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <string.h>
 
 /* ---- exact expansions: increasing magnitude, non-overlapping, zeros eliminated ---- */
 static void two_sum(double a, double b, double *x, double *y)
@@ -331,39 +332,55 @@ double ck_percentile(double *a, int64_t n, double q)
 }
 
 /* ---- a uniform grid of buckets over items with bounding boxes ---- */
-i2m_err_t ck_grid_build(ck_grid_t *g, int64_t nitems, ck_bbox_fn bbox, const void *ctx)
+/* The cells item i's box meets: c0..c1 along each axis. */
+static void item_cells(const ck_grid_t *g, ck_bbox_fn bbox, const void *ctx, int64_t i, int64_t c0[3], int64_t c1[3])
 {
-  int64_t ncell = g->n[0] * g->n[1] * g->n[2];
+  double lo[3], hi[3];
+  bbox(ctx, i, lo, hi);
+  for (int a = 0; a < 3; a++) {
+    c0[a] = ck_grid_cell(g, a, lo[a]);
+    c1[a] = ck_grid_cell(g, a, hi[a]);
+  }
+}
+
+i2m_err_t ck_grid_build(ck_grid_t *g, int64_t nitems, ck_bbox_fn bbox, const void *ctx, ck_progress_t *pr)
+{
+  const int64_t ncell = g->n[0] * g->n[1] * g->n[2];
+  int64_t *next = NULL;
   g->nitems = nitems;
   I2M_CALL(i2m_calloc((size_t)ncell + 1, sizeof *g->start, &g->start));
   for (int pass = 0; pass < 2; pass++) {
-    if (pass == 1) {
+    if (pass == 1) { /* counts to starts; next: where each cell's next item goes */
       for (int64_t c = 0; c < ncell; c++) g->start[c + 1] += g->start[c];
-      I2M_CALL(i2m_malloc((size_t)g->start[ncell], sizeof *g->item, &g->item));
+      I2M_CALL(i2m_malloc((size_t)g->start[ncell] + 1, sizeof *g->item, &g->item));
+      I2M_CALL(i2m_malloc((size_t)ncell + 1, sizeof *next, &next));
+      memcpy(next, g->start, (size_t)(ncell + 1) * sizeof *next);
     }
-    for (int64_t i = 0; i < nitems; i++) {
-      double lo[3], hi[3];
-      int64_t c0[3], c1[3];
-      bbox(ctx, i, lo, hi);
-      for (int a = 0; a < 3; a++) {
-        c0[a] = ck_grid_cell(g, a, lo[a]);
-        c1[a] = ck_grid_cell(g, a, hi[a]);
+    CK_OMP("omp parallel for schedule(dynamic, 1)")
+    for (int k = 0; k < CK_CHUNKS; k++) {
+      const int64_t i0 = ck_chunk_begin(nitems, k), i1 = ck_chunk_begin(nitems, k + 1);
+      for (int64_t i = i0; i < i1; i++) {
+        int64_t c0[3], c1[3];
+        item_cells(g, bbox, ctx, i, c0, c1);
+        for (int64_t z = c0[2]; z <= c1[2]; z++)
+          for (int64_t y = c0[1]; y <= c1[1]; y++)
+            for (int64_t x = c0[0]; x <= c1[0]; x++) {
+              const int64_t c = (z * g->n[1] + y) * g->n[0] + x;
+              if (pass == 0) {
+                CK_OMP("omp atomic")
+                g->start[c + 1]++;
+              } else {
+                int64_t at;
+                CK_OMP("omp atomic capture")
+                at = next[c]++;
+                g->item[at] = i;
+              }
+            }
       }
-      for (int64_t z = c0[2]; z <= c1[2]; z++)
-        for (int64_t y = c0[1]; y <= c1[1]; y++)
-          for (int64_t x = c0[0]; x <= c1[0]; x++) {
-            int64_t c = (z * g->n[1] + y) * g->n[0] + x;
-            if (pass == 0)
-              g->start[c + 1]++;
-            else
-              g->item[g->start[c]++] = i;
-          }
-    }
-    if (pass == 1) { /* restore starts */
-      for (int64_t c = ncell; c > 0; c--) g->start[c] = g->start[c - 1];
-      g->start[0] = 0;
+      if (pr) ck_progress_add(pr, i1 - i0);
     }
   }
+  i2m_free(&next);
   return I2M_OK;
 }
 

@@ -728,31 +728,13 @@ out:
 
 /* ---- driver ---- */
 
-/* A box callback that also counts the items for a progress line (ck_grid_build goes over the
- * items twice). */
-typedef struct {
-  ck_bbox_fn bbox;
-  const void *ctx;
-  ck_progress_t *pr;
-  int64_t *calls;
-} counted_t;
-
-static void counted_bbox(const void *ctx, int64_t i, double lo[3], double hi[3])
-{
-  const counted_t *c = ctx;
-  if (++*c->calls % 65536 == 0) ck_progress_to(c->pr, *c->calls);
-  c->bbox(c->ctx, i, lo, hi);
-}
-
 static i2m_err_t grid_build_counted(ck_grid_t *g, int64_t n, ck_bbox_fn bbox, const void *ctx, const char *phase,
                                     const char *unit)
 {
   ck_progress_t pr;
   ck_progress_begin(&pr, phase, unit, 2 * n);
-  int64_t calls = 0;
-  const counted_t c = {bbox, ctx, &pr, &calls};
-  const i2m_err_t err = ck_grid_build(g, n, counted_bbox, &c);
-  ck_progress_set(&pr, calls);
+  const i2m_err_t err = ck_grid_build(g, n, bbox, ctx, &pr);
+  ck_progress_set(&pr, 2 * n);
   ck_progress_end(&pr);
   return err;
 }

@@ -446,7 +446,7 @@ static i2m_err_t probe_grid(const probe_t *pr, int64_t np, ck_grid_t *g, double 
     g->h[a] = h;
     g->n[a] = c < 1e6 ? (int64_t)c + 1 : 1000000; /* (a guard: cell_size keeps it small) */
   }
-  return ck_grid_build(g, np, probe_box, pr);
+  return ck_grid_build(g, np, probe_box, pr, NULL);
 }
 
 /* Is q in the closed tet t (exact orientations; a flat tet holds nothing)? */

@@ -26,15 +26,50 @@ static inline double gap(double lo, double hi, double x)
   return x < lo ? lo - x : x > hi ? x - hi : 0.0;
 }
 
+/* The items one thread's search has measured for the current point (mark[i] == query): an
+ * item that spans several cells, or a cell met again when the box grows, is measured once. */
+typedef struct {
+  uint32_t *mark; /* [n], or NULL: no marks (every item met is measured) */
+  uint32_t query;
+  int64_t n;
+} seen_t;
+
+static void seen_begin(seen_t *s, const ck_grid_t *g)
+{
+  s->query = 0;
+  s->n = g->nitems ? g->nitems : 1;
+  if (i2m_calloc((size_t)s->n, sizeof *s->mark, &s->mark) != I2M_OK) s->mark = NULL; /* (then no marks) */
+}
+
+/* Whether item i is measured already for this point (and marks it). */
+static int seen_again(seen_t *s, int64_t i)
+{
+  if (!s || !s->mark) return 0;
+  if (s->mark[i] == s->query) return 1;
+  s->mark[i] = s->query;
+  return 0;
+}
+
+static void seen_next_point(seen_t *s)
+{
+  if (!s || !s->mark) return;
+  if (++s->query == 0) { /* (wrapped: the old marks could pass for the new point's) */
+    memset(s->mark, 0, (size_t)s->n * sizeof *s->mark);
+    s->query = 1;
+  }
+}
+
 /* Exact distance from p to the nearest item, given an upper bound ub (INFINITY if none).
  * The searched box grows from one cell by doubling until it holds the answer; ub only
- * prunes (a far ub never makes the box large). */
+ * prunes (a far ub never makes the box large).  seen: the thread's marks, or NULL. */
 static double grid_nearest(const ck_grid_t *g, const double p[3], double ub, dist_fn dist,
-                           const void *ctx, int64_t *hint)
+                           const void *ctx, int64_t *hint, seen_t *seen)
 {
   if (g->nitems == 0) return INFINITY;
+  seen_next_point(seen);
   double best2 = isfinite(ub) ? ub * ub * (1 + 1e-12) + 1e-300 : INFINITY;
   if (hint && *hint >= 0) { /* the previous query's nearest item: usually a tight bound */
+    seen_again(seen, *hint);
     double d2 = dist(ctx, *hint, p);
     if (d2 < best2) {
       best2 = d2;
@@ -66,6 +101,7 @@ static double grid_nearest(const ck_grid_t *g, const double p[3], double ub, dis
           /* the grid covers every item, so the cell box bounds its items' distances */
           if (dzy + dx * dx >= best2) continue;
           for (int64_t k = st[x]; k < st[x + 1]; k++) {
+            if (seen_again(seen, g->item[k])) continue;
             double d2 = dist(ctx, g->item[k], p);
             if (d2 < best2) {
               best2 = d2;
@@ -342,7 +378,7 @@ static i2m_err_t mesh_to_image(const tctx_t *tc, int64_t ntri, const ck_grid_t *
       double ub = isfinite(pd) ? pd + sqrt(i2m_sq(p[0] - prev[0]) + i2m_sq(p[1] - prev[1]) +
                                            i2m_sq(p[2] - prev[2]))
                                : INFINITY;
-      pd = grid_nearest(fg, p, ub, face_dist2, fc, &hint);
+      pd = grid_nearest(fg, p, ub, face_dist2, fc, &hint, NULL); /* (faces rarely span cells: no marks) */
       memcpy(prev, p, sizeof prev);
       d[off[t] + s] = (float)pd;
       sum += pd;
@@ -366,7 +402,7 @@ static i2m_err_t mesh_to_image(const tctx_t *tc, int64_t ntri, const ck_grid_t *
     double p[3];
     int64_t n = tri_divisions(tc->g + 3 * v[0], tc->g + 3 * v[1], tc->g + 3 * v[2], h);
     tri_sample(tc->g + 3 * v[0], tc->g + 3 * v[1], tc->g + 3 * v[2], n, arg[wt], p);
-    f->mesh_to_image.max = grid_nearest(fg, p, INFINITY, face_dist2, fc, NULL);
+    f->mesh_to_image.max = grid_nearest(fg, p, INFINITY, face_dist2, fc, NULL, NULL);
     i2m_image_grid_to_world(img, p, f->mesh_to_image.where);
   }
   f->mesh_samples = ns;
@@ -403,6 +439,44 @@ static void face_points(const i2m_image_t *img, const vface_t *f, double p[FACE_
 
 #define CK_CHUNK 1024
 
+/* Image -> mesh for image faces [i0, i1) (one chunk, searched in order: each point's nearest
+ * triangle bounds the next one's search); returns the sum of the samples' distances. */
+static double image_chunk(const vface_t *faces, int64_t i0, int64_t i1, const ck_grid_t *tg, const tctx_t *tc,
+                          const i2m_image_t *img, seen_t *sn, float *d, float *w, float *fmaxd)
+{
+  double prev[3] = {0, 0, 0}, pd = INFINITY, largest = 0.0, sum = 0.0; /* largest: the chunk's so far */
+  int64_t hint = -1;
+  for (int64_t i = i0; i < i1; i++) {
+    double p[FACE_POINTS][3], m = 0.0, centre = 0.0; /* centre: its centre's distance */
+    int ax = faces[i].axis;
+    const double sb = img->spacing[(ax + 1) % 3], sc = img->spacing[(ax + 2) % 3];
+    float share = (float)(sb * sc / FACE_SAMPLES);
+    face_points(img, faces + i, p);
+    /* The corners count for the maximum only, and lie within half the face's diagonal of
+     * its centre: when the centre's distance plus that cannot beat the largest found, they
+     * cannot raise the maximum (the face's own is then a lower bound, which the search for
+     * the worst face below may take: a face it picks is recomputed whole). */
+    for (int q = 0; q < FACE_POINTS; q++) {
+      if (q == FACE_SAMPLES && centre + 0.5 * sqrt(sb * sb + sc * sc) <= largest) break;
+      double ub = isfinite(pd) ? pd + sqrt(i2m_sq(p[q][0] - prev[0]) + i2m_sq(p[q][1] - prev[1]) +
+                                           i2m_sq(p[q][2] - prev[2]))
+                               : INFINITY;
+      pd = grid_nearest(tg, p[q], ub, tri_dist2, tc, &hint, sn);
+      memcpy(prev, p[q], sizeof prev);
+      m = fmax(m, pd);
+      if (q == FACE_CENTRE) centre = pd;
+      if (q < FACE_SAMPLES) {
+        d[i * FACE_SAMPLES + q] = (float)pd;
+        w[i * FACE_SAMPLES + q] = share;
+        sum += pd;
+      }
+    }
+    fmaxd[i] = (float)m;
+    largest = m > largest ? m : largest;
+  }
+  return sum;
+}
+
 /* Image -> mesh: every face's nine samples go to the distribution (each weighing a ninth of
  * the face's area); its corners count for the maximum. */
 static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const ck_grid_t *tg,
@@ -419,40 +493,17 @@ static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const ck_grid_t
   int64_t nchunk = (nf + CK_CHUNK - 1) / CK_CHUNK;
   ck_progress_t pr;
   ck_progress_begin(&pr, "fidelity, image->mesh distances", "image faces", nf);
-  CK_OMP("omp parallel for schedule(dynamic, 4) reduction(+ : sum)")
-  for (int64_t ch = 0; ch < nchunk; ch++) {
-    double prev[3] = {0, 0, 0}, pd = INFINITY, seen = 0.0; /* seen: the chunk's largest so far */
-    int64_t hint = -1;
-    int64_t end = (ch + 1) * CK_CHUNK < nf ? (ch + 1) * CK_CHUNK : nf;
-    ck_progress_add(&pr, end - ch * CK_CHUNK); /* (counted as the chunk starts) */
-    for (int64_t i = ch * CK_CHUNK; i < end; i++) {
-      double p[FACE_POINTS][3], m = 0.0, centre = 0.0; /* centre: its centre's distance */
-      int ax = faces[i].axis;
-      const double sb = img->spacing[(ax + 1) % 3], sc = img->spacing[(ax + 2) % 3];
-      float share = (float)(sb * sc / FACE_SAMPLES);
-      face_points(img, faces + i, p);
-      /* The corners count for the maximum only, and lie within half the face's diagonal of
-       * its centre: when the centre's distance plus that cannot beat the largest found, they
-       * cannot raise the maximum (the face's own is then a lower bound, which the search for
-       * the worst face below may take: a face it picks is recomputed whole). */
-      for (int q = 0; q < FACE_POINTS; q++) {
-        if (q == FACE_SAMPLES && centre + 0.5 * sqrt(sb * sb + sc * sc) <= seen) break;
-        double ub = isfinite(pd) ? pd + sqrt(i2m_sq(p[q][0] - prev[0]) + i2m_sq(p[q][1] - prev[1]) +
-                                             i2m_sq(p[q][2] - prev[2]))
-                                 : INFINITY;
-        pd = grid_nearest(tg, p[q], ub, tri_dist2, tc, &hint);
-        memcpy(prev, p[q], sizeof prev);
-        m = fmax(m, pd);
-        if (q == FACE_CENTRE) centre = pd;
-        if (q < FACE_SAMPLES) {
-          d[i * FACE_SAMPLES + q] = (float)pd;
-          w[i * FACE_SAMPLES + q] = share;
-          sum += pd;
-        }
-      }
-      fmaxd[i] = (float)m;
-      seen = m > seen ? m : seen;
+  CK_OMP("omp parallel reduction(+ : sum)")
+  {
+    seen_t sn;
+    seen_begin(&sn, tg);
+    CK_OMP("omp for schedule(dynamic, 4)")
+    for (int64_t ch = 0; ch < nchunk; ch++) {
+      const int64_t i0 = ch * CK_CHUNK, i1 = i0 + CK_CHUNK < nf ? i0 + CK_CHUNK : nf;
+      ck_progress_add(&pr, i1 - i0); /* (counted as the chunk starts) */
+      sum += image_chunk(faces, i0, i1, tg, tc, img, &sn, d, w, fmaxd);
     }
+    i2m_free(&sn.mark);
   }
   ck_progress_end(&pr);
   *worst = -1;
@@ -467,7 +518,7 @@ static i2m_err_t image_to_mesh(const vface_t *faces, int64_t nf, const ck_grid_t
     int qm = 0;
     face_points(img, faces + *worst, p);
     for (int q = 0; q < FACE_POINTS; q++) {
-      double x = grid_nearest(tg, p[q], INFINITY, tri_dist2, tc, NULL);
+      double x = grid_nearest(tg, p[q], INFINITY, tri_dist2, tc, NULL, NULL);
       if (x > m) {
         m = x;
         qm = q;

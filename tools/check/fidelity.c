@@ -674,27 +674,27 @@ static int64_t centre_component(const ck_mesh_t *m, const double *g, const i2m_i
 static i2m_err_t component_pieces(const ck_mesh_t *m, const ck_topo_t *topo, const double *g, const i2m_image_t *img,
                                   const i2m_components_t *runs, const int64_t *comp, ck_fidelity_t *f, ck_progress_t *pr)
 {
-  int64_t *pieces = NULL, *cc = NULL, *first = NULL, *order = NULL;
+  int64_t *pieces = NULL, *cc = NULL, *pos = NULL, *order = NULL;
   votes_t V = {NULL, NULL, NULL, 0, 0};
   i2m_err_t err = I2M_OK;
   const int64_t nt = m->nt;
   I2M_CALL(i2m_malloc((size_t)(nt ? nt : 1), sizeof *cc, &cc));
-  I2M_CALL_GOTO(err, out, i2m_calloc((size_t)nt + 1, sizeof *first, &first));
+  I2M_CALL_GOTO(err, out, i2m_calloc((size_t)nt + 1, sizeof *pos, &pos));
   I2M_CALL_GOTO(err, out, i2m_malloc((size_t)(nt ? nt : 1), sizeof *order, &order));
   CK_OMP("omp parallel for schedule(dynamic, 8192)")
   for (int64_t t = 0; t < nt; t++) {
     cc[t] = centre_component(m, g, img, runs, t);
     if (t % 65536 == 65535) ck_progress_add(pr, 65536);
   }
-  /* the voting tets bucketed by piece, in the tets' order (a counting sort) */
-  for (int64_t t = 0; t < nt; t++) first[comp[t] + 1] += cc[t] >= 0;
-  for (int64_t t = 0; t < nt; t++) first[t + 1] += first[t];
+  /* the voting tets bucketed by piece, in the tets' order (a counting sort: pos[p] is where
+   * piece p's next vote goes, and after the fill where its votes end) */
+  for (int64_t t = 0; t < nt; t++) pos[comp[t] + 1] += cc[t] >= 0;
+  for (int64_t t = 0; t < nt; t++) pos[t + 1] += pos[t];
   for (int64_t t = 0; t < nt; t++)
-    if (cc[t] >= 0) order[first[comp[t]]++] = t;
-  /* (first[p] now ends bucket p, which starts where bucket p - 1 ends) */
+    if (cc[t] >= 0) order[pos[comp[t]]++] = t;
   I2M_CALL_GOTO(err, out, i2m_calloc((size_t)(runs->nruns ? runs->nruns : 1), sizeof *pieces, &pieces));
   for (int64_t p = 0; p < nt; p++) { /* each piece: the component with the most volume */
-    const int64_t begin = p ? first[p - 1] : 0, end = first[p];
+    const int64_t begin = p ? pos[p - 1] : 0, end = pos[p];
     if (begin == end) continue;
     for (int64_t k = begin; k < end; k++) I2M_CALL_GOTO(err, out, votes_add(&V, cc[order[k]], fabs(topo->vol[order[k]])));
     pieces[votes_best(&V)]++;
@@ -707,7 +707,7 @@ static i2m_err_t component_pieces(const ck_mesh_t *m, const ck_topo_t *topo, con
   }
 out:
   i2m_free(&cc);
-  i2m_free(&first);
+  i2m_free(&pos);
   i2m_free(&order);
   i2m_free(&pieces);
   votes_free(&V);

@@ -87,6 +87,14 @@ static void sorted_tet(const ck_mesh_t *m, int64_t t, int64_t q[4])
   }
 }
 
+/* A defect's count and its first case, after one more chunk (chunks taken in order): the
+ * chunk's first case is the first overall when no chunk before it had one. */
+static void add_defects(int64_t *count, int64_t *first, int64_t chunk_count, int64_t chunk_first)
+{
+  if (chunk_count && !*count) *first = chunk_first;
+  *count += chunk_count;
+}
+
 /* The face counts of a range of buckets (one chunk's; chunks combine in order). */
 typedef struct {
   int64_t boundary, interior, nonmanifold, first_nonmanifold, overlapping, first_overlapping;
@@ -176,12 +184,10 @@ static i2m_err_t match_faces(const ck_mesh_t *m, const int8_t *sgn, ck_validity_
   v->first_nonmanifold_tet = v->first_overlapping_tet = -1;
   for (int c = 0; c < CK_CHUNKS; c++) {
     const face_part_t *x = &part[c];
-    if (x->nonmanifold && !v->nonmanifold_faces) v->first_nonmanifold_tet = x->first_nonmanifold;
-    if (x->overlapping && !v->overlapping_faces) v->first_overlapping_tet = x->first_overlapping;
+    add_defects(&v->nonmanifold_faces, &v->first_nonmanifold_tet, x->nonmanifold, x->first_nonmanifold);
+    add_defects(&v->overlapping_faces, &v->first_overlapping_tet, x->overlapping, x->first_overlapping);
     v->boundary_faces += x->boundary;
     v->interior_faces += x->interior;
-    v->nonmanifold_faces += x->nonmanifold;
-    v->overlapping_faces += x->overlapping;
   }
 out:
   i2m_free(&start);
@@ -444,10 +450,8 @@ static void geometry(const ck_mesh_t *m, ck_validity_t *v, ck_topo_t *topo, int8
   v->first_inverted = v->first_degenerate = v->min_volume_tet = -1;
   for (int c = 0; c < CK_CHUNKS; c++) {
     const geom_part_t *x = &part[c];
-    if (x->inverted && !v->inverted) v->first_inverted = x->first_inverted;
-    if (x->degenerate && !v->degenerate) v->first_degenerate = x->first_degenerate;
-    v->inverted += x->inverted;
-    v->degenerate += x->degenerate;
+    add_defects(&v->inverted, &v->first_inverted, x->inverted, x->first_inverted);
+    add_defects(&v->degenerate, &v->first_degenerate, x->degenerate, x->first_degenerate);
     if (x->min_volume_tet >= 0 && (v->min_volume_tet < 0 || x->min_volume < v->min_volume)) {
       v->min_volume = x->min_volume;
       v->min_volume_tet = x->min_volume_tet;

@@ -245,9 +245,11 @@ void i2m_refine_tiling_figures(const i2m_refine_t *r, double *side, int64_t *rou
  *  holds every tile (rank 0 after the coarse mesh), else none. */
 i2m_err_t i2m_refine_dist_begin(i2m_refine_t *r, bool hold_all);
 void i2m_refine_dist_end(i2m_refine_t *r);
-/** Asynchronous mode: each task drops the elements it hands to other tiles that have nothing
- *  to do (judged in its block), so that they draw no task that would fetch data for them. */
-void i2m_refine_dist_judge_handoffs(i2m_refine_t *r, bool on);
+/** Asynchronous mode (on) or the deterministic one: each task drops the elements it hands to
+ *  other tiles that have nothing to do (judged in its block), so that they draw no task that
+ *  would fetch data for them; and it is granted slots for most of its work at once, so that it
+ *  does not end, report and get its cell back several times. */
+void i2m_refine_dist_asynchronous(i2m_refine_t *r, bool on);
 /** After tasks: the tets and vertices they made, filed in their tiles and in the id map. */
 i2m_err_t i2m_refine_dist_merge(i2m_refine_t *r);
 /** Does this rank hold tile id? */

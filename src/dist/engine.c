@@ -958,13 +958,13 @@ i2m_err_t i2m_dist_refine(const i2m_par_t *par, i2m_refine_t *r, const i2m_dist_
   i2m_debug("dist: coarse mesh %.2f s, its distribution %.2f s", t1 - t0, E.t0 - t1);
   E.fig.preprocess = E.t0 - t0;
   if (err == I2M_OK) err = i2m_par_agree(par, i2m_refine_dist_set_location(r, E.S.holder));
-  i2m_refine_dist_judge_handoffs(r, !o->threads.deterministic);
+  i2m_refine_dist_asynchronous(r, !o->threads.deterministic);
   if (err == I2M_OK) err = engine_run(&E, &to, team);
   if (err == I2M_OK && o->spread_output) /* (before the pieces are built: they would be again) */
     err = i2m_dist_balance(par, r, rep);
   const double t2 = i2m_wtime();
   if (err == I2M_OK) err = component_rule(&E, &to, team, rep);
-  i2m_refine_dist_judge_handoffs(r, false);
+  i2m_refine_dist_asynchronous(r, false);
   i2m_debug("dist: tasks %.2f s, component rule %.2f s", t2 - E.t0, i2m_wtime() - t2);
   rep->fine_seconds = i2m_par_max(par, i2m_wtime() - E.t0);
   i2m_refine_stats_t st;

@@ -275,8 +275,10 @@ struct i2m_refine {
   bool sliver_pass_ran;             /* a sliver pass changed the mesh (pieces_small_tets) */
   struct sliver_pass *slivers;      /* owned: the sliver perturbation under way (slivers.c), or NULL */
   struct submesh *sub;              /* owned: the dist layer's bookkeeping (submesh.c), or NULL */
-  bool judge_handoffs;              /* dist, asynchronous: a task drops what it hands its neighbours
-                                       that has nothing to do (tiles.c, judge_handoffs) */
+  bool async_tasks;                 /* dist, asynchronous mode: a task drops what it hands its
+                                       neighbours that has nothing to do (tiles.c, judge_handoffs),
+                                       and its slots are granted for most of its work at once
+                                       (grant_tile) */
 };
 
 /* The most tets a fragment may have: PIECE_SMALL_TETS, and PIECE_SLIVER_GROWTH times as many

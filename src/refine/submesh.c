@@ -349,7 +349,7 @@ i2m_err_t i2m_refine_dist_begin(i2m_refine_t *r, bool hold_all)
   return err;
 }
 
-void i2m_refine_dist_judge_handoffs(i2m_refine_t *r, bool on) { r->judge_handoffs = on; }
+void i2m_refine_dist_asynchronous(i2m_refine_t *r, bool on) { r->async_tasks = on; }
 
 void i2m_refine_dist_end(i2m_refine_t *r)
 {

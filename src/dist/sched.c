@@ -284,6 +284,30 @@ uint32_t sched_pick_held(sched_t *S, int rank, uint32_t max, sched_task_t *out)
   return pick_tasks(S, rank, max, out, total, -1, false); /* (a cap below 0: no fetch is within it) */
 }
 
+uint32_t sched_pick_narrow(sched_t *S, int rank, uint32_t max, sched_task_t *out)
+{
+  uint32_t k = 0;
+  while (k < max) {
+    int64_t best_work = 0;
+    uint32_t best = 0;
+    for (uint32_t c = 0; c < S->ncells; c++) {
+      const sched_task_t t = {c, false};
+      if (S->holder[c] == rank && S->work[c] > best_work && sched_runnable(S, t)) {
+        best = c;
+        best_work = S->work[c];
+      }
+    }
+    if (best_work == 0) break;
+    uint32_t cells[125];
+    const uint32_t n = sched_block(S, (sched_task_t){best, false}, cells);
+    for (uint32_t i = 0; i < n; i++) S->lock[cells[i]]++;
+    S->inflight[rank]++;
+    S->tasks_given++;
+    out[k++] = (sched_task_t){best, false};
+  }
+  return k;
+}
+
 bool sched_in_flight(const sched_t *S)
 {
   for (int r = 0; r < S->nranks; r++)

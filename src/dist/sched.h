@@ -94,6 +94,12 @@ uint32_t sched_pick(sched_t *S, int rank, uint32_t max, sched_task_t *out);
 /** As sched_pick, but only tasks whose whole block `rank` holds (nothing fetched). */
 uint32_t sched_pick_held(sched_t *S, int rank, uint32_t max, sched_task_t *out);
 
+/** As sched_pick_held, but tasks of the cells `rank` holds, whatever it holds of their
+ *  blocks: their blocks are locked and nothing moves (the holders stay as they are).  The
+ *  task works on the tets its rank holds; a change that would reach another rank's stops there
+ *  (the kernel's frozen faces) and waits for a task that fetches.  The most work first. */
+uint32_t sched_pick_narrow(sched_t *S, int rank, uint32_t max, sched_task_t *out);
+
 /** Does any rank run tasks? */
 bool sched_in_flight(const sched_t *S);
 

@@ -983,6 +983,37 @@ static void test_pick_held(void)
   sched_free(&S);
 }
 
+/* sched_pick_narrow: the tasks of the cells the rank holds, the busiest first, blocks apart and
+ * locked, and no holder changes (nothing moves), even where the block reaches another rank's. */
+static void test_pick_narrow(void)
+{
+  sched_t S;
+  sched_task_t t[8];
+  two_ranks_cube(&S, 100);
+  for (uint32_t c = 0; c < S.ncells; c++) S.holder[c] = c % 8 < 4 ? 0 : 1; /* (x < 4: rank 0) */
+  int32_t before[512];
+  memcpy(before, S.holder, sizeof before);
+  const uint32_t border = 3 + 8 * (3 + 8 * 3), next = 2 + 8 * (3 + 8 * 3), far = 0 + 8 * (0 + 8 * 0);
+  const uint32_t other = 4 + 8 * (3 + 8 * 3); /* rank 1's, across the border */
+  S.work[border] = 50;
+  S.work[next] = 40; /* (its block overlaps border's) */
+  S.work[far] = 1;
+  S.work[other] = 30;
+  CU_ASSERT_EQUAL_FATAL(sched_pick_narrow(&S, 0, 8, t), 2);
+  CU_ASSERT(t[0].cell == border && t[1].cell == far && !t[0].wide && !t[1].wide);
+  CU_ASSERT(memcmp(before, S.holder, sizeof before) == 0);
+  CU_ASSERT(S.lock[other] == 1 && S.lock[next] == 1 && S.inflight[0] == 2);
+  CU_ASSERT_EQUAL(sched_pick_narrow(&S, 1, 8, t), 0); /* (other's block is locked) */
+  sched_feedback(&S, 0, (sched_task_t[]){{border, false}, {far, false}}, 2, NULL, 0);
+  S.work[border] = S.work[far] = 0;
+  CU_ASSERT_EQUAL_FATAL(sched_pick_narrow(&S, 1, 8, t), 1);
+  CU_ASSERT(t[0].cell == other);
+  CU_ASSERT_EQUAL(sched_pick_narrow(&S, 0, 8, t), 0); /* (next's block meets other's) */
+  CU_ASSERT(memcmp(before, S.holder, sizeof before) == 0);
+  for (uint32_t c = 0; c < S.ncells; c++) CU_ASSERT(S.lock[c] <= 1);
+  sched_free(&S);
+}
+
 static void test_best_rank_ties(void)
 {
   const int32_t n[3] = {3, 3, 3};
@@ -1137,6 +1168,7 @@ static const test_case_t tests[] = {
     {"busy, wide tasks alone, blocks apart, by hand", test_busy_by_hand},
     {"fetching only for work worth the tets, or on a stall, by hand", test_move_worth},
     {"sched_pick_held: no fetch, even on a stall", test_pick_held},
+    {"sched_pick_narrow: the cells a rank holds, nothing moves", test_pick_narrow},
     {"sched_best_rank and its ties", test_best_rank_ties},
     {"sched_balance by hand", test_balance_by_hand},
     {"sched_balance on random drifts, 2-5 ranks: legal moves, the bound or no move left", test_balance_random},

@@ -146,12 +146,12 @@ int i2m_edt_label_k(const i2m_edt_t *e, const double u[3], int64_t vox);
  *  i2m_edt_prefetch requests the word of voxel vox (i2m_edt_voxel_k); once that word has
  *  arrived, i2m_edt_prefetch_feature requests the words around the voxel it names, which the
  *  closest-point search reads.  Nothing for vox < 0 (outside K). */
-static inline void i2m_edt_prefetch(const i2m_edt_t *e, int64_t vox)
+static I2M_INLINE void i2m_edt_prefetch(const i2m_edt_t *e, int64_t vox)
 {
   if (vox >= 0) I2M_PREFETCH(&e->ft[vox]);
 }
 
-static inline void i2m_edt_prefetch_feature(const i2m_edt_t *e, int64_t vox)
+static I2M_INLINE void i2m_edt_prefetch_feature(const i2m_edt_t *e, int64_t vox)
 {
   if (vox < 0) return;
   const int64_t f = i2m_edt_feature(e, vox), s1 = e->m[0], s2 = e->m[0] * e->m[1], n = s2 * e->m[2];

@@ -64,7 +64,7 @@ i2m_err_t worker_push(i2m_refine_worker_t *w, uint32_t t)
 
 /* Starts loading what the rules read of tet t besides its own words: its neighbours' labels
  * (the facet rules) and its vertices' kinds and patches (R1's spacing test, R5/R6). */
-static void prefetch_rule_inputs(const i2m_refine_t *r, uint32_t t)
+static I2M_INLINE void prefetch_rule_inputs(const i2m_refine_t *r, uint32_t t)
 {
   const i2m_dt_t *dt = r->dt;
   const uint32_t *tn = dt->tn + 4 * (size_t)t, *v = dt->tv + 4 * (size_t)t;

@@ -247,8 +247,8 @@ i2m_err_t i2m_refine_dist_begin(i2m_refine_t *r, bool hold_all);
 void i2m_refine_dist_end(i2m_refine_t *r);
 /** Asynchronous mode (on) or the deterministic one: each task drops the elements it hands to
  *  other tiles that have nothing to do (judged in its block), so that they draw no task that
- *  would fetch data for them; and it is granted slots for most of its work at once, so that it
- *  does not end, report and get its cell back several times. */
+ *  would fetch data for them; and it is granted slots for a good part of its work at once
+ *  (16 a bad element), so that it does not end, report and get its cell back several times. */
 void i2m_refine_dist_asynchronous(i2m_refine_t *r, bool on);
 /** After tasks: the tets and vertices they made, filed in their tiles and in the id map. */
 i2m_err_t i2m_refine_dist_merge(i2m_refine_t *r);

@@ -277,8 +277,8 @@ struct i2m_refine {
   struct submesh *sub;              /* owned: the dist layer's bookkeeping (submesh.c), or NULL */
   bool async_tasks;                 /* dist, asynchronous mode: a task drops what it hands its
                                        neighbours that has nothing to do (tiles.c, judge_handoffs),
-                                       and its slots are granted for most of its work at once
-                                       (grant_tile) */
+                                       and its slots are granted for a good part of its work
+                                       at once (grant_tile) */
 };
 
 /* The most tets a fragment may have: PIECE_SMALL_TETS, and PIECE_SLIVER_GROWTH times as many

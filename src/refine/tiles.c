@@ -721,11 +721,11 @@ void tiles_canonical_all(i2m_refine_t *r)
 /* Slots for a tile's work, from its live elements (it stops when they run out).  The
  * deterministic modes start small and double the grant each time a tile runs out (where a
  * task stops is part of the result, and memory stays near what is used).  The asynchronous
- * tasks of the distributed level start at ASYNC_GRANT, 16 slots a bad element (one costs about
- * 4 insertions of some 6.5 tets each at the start): a task that stopped early ended, was
- * merged, fed back and asked for again (knee at delta 0.33, 2 ranks: ~2,100 tasks, 460 of each rank's
- * ~700 batches the same cell as the one before, 5 K, 12 K, 34 K, 69 K, 130 K tets made in a
- * row; with it ~800 tasks). */
+ * tasks of the distributed level start at ASYNC_GRANT, 16 slots a bad element (one costs
+ * about 4 insertions of some 6.5 tets each at the start): a task that stopped early ended,
+ * was merged, fed back and asked for again (knee at delta 0.33, 2 ranks: ~2,100 tasks, 460 of
+ * each rank's ~700 batches the cell of the batch before, 5 K, 12 K, 34 K, 69 K, 130 K tets
+ * made in a row; with it ~800 tasks). */
 #define ASYNC_GRANT 64
 static i2m_err_t grant_tile(i2m_refine_t *r, tile_t *tl, size_t work)
 {

@@ -288,6 +288,44 @@ i2m_err_t dist_note_vertex(i2m_refine_worker_t *w, uint32_t v)
   return I2M_OK;
 }
 
+/* A list's tets lie anywhere in the arrays, and every load waits for memory: entry i's loop
+ * requests the words of the tet PREFETCH_AHEAD entries on (its stamp, vertices, mark), and
+ * the marks of the vertices of the live one half as far (whose words have arrived by then).
+ * Forced inline: GCC drops a call to a function that only prefetches under a condition. */
+#define PREFETCH_AHEAD 16
+static I2M_INLINE void prefetch_listed(const struct submesh *S, const i2m_dt_t *dt, const tetref_t *list, uint32_t n,
+                                       uint32_t i)
+{
+  if (i + PREFETCH_AHEAD < n) {
+    const uint32_t t = list[i + PREFETCH_AHEAD].t;
+    I2M_PREFETCH(dt->tv + 4 * (size_t)t);
+    I2M_PREFETCH(&dt->meta[t]);
+    I2M_PREFETCH(&S->tmark[t]);
+  }
+  if (i + PREFETCH_AHEAD / 2 < n) { /* (a stale entry's slot may be a running task's: not read) */
+    const tetref_t e = list[i + PREFETCH_AHEAD / 2];
+    if (i2m_dt_stamp(dt, e.t) != e.meta) return;
+    const uint32_t *v = dt->tv + 4 * (size_t)e.t;
+    for (int j = 0; j < 4; j++) I2M_PREFETCH(&S->vmark[v[j]]);
+  }
+}
+
+/* As prefetch_listed, for what filing a new tet reads: its stamp, and its vertices'
+ * coordinates (its cell is its centroid's). */
+static I2M_INLINE void prefetch_born(const i2m_dt_t *dt, const tetref_t *list, uint32_t n, uint32_t i)
+{
+  if (i + PREFETCH_AHEAD < n) {
+    const uint32_t t = list[i + PREFETCH_AHEAD].t;
+    I2M_PREFETCH(dt->tv + 4 * (size_t)t);
+    I2M_PREFETCH(&dt->meta[t]);
+  }
+  if (i + PREFETCH_AHEAD / 2 < n) {
+    const uint32_t *v = dt->tv + 4 * (size_t)list[i + PREFETCH_AHEAD / 2].t;
+    for (int j = 0; j < 4; j++)
+      if (v[j] < dt->cap_v) I2M_PREFETCH(i2m_dt_xyz(dt, v[j])); /* (a dead tet's row may be anything) */
+  }
+}
+
 i2m_err_t i2m_refine_dist_merge(i2m_refine_t *r)
 {
   struct submesh *S = r->sub;
@@ -297,6 +335,7 @@ i2m_err_t i2m_refine_dist_merge(i2m_refine_t *r)
   for (int k = 0; k < r->nworkers; k++) {
     i2m_refine_worker_t *w = &r->workers[k];
     for (uint32_t i = 0; i < w->nborn; i++) {
+      prefetch_born(dt, w->born, w->nborn, i);
       const tetref_t e = w->born[i];
       if (i2m_dt_stamp(dt, e.t) != e.meta) continue; /* (most die within the task) */
       tile_t *tl = &g->tile[tiles_tile_of_tet(r, e.t)];
@@ -440,6 +479,7 @@ static i2m_err_t number_submesh(const i2m_refine_t *r, const tile_t *tl, uint32_
   I2M_CALL(i2m_malloc(tl->ntets ? tl->ntets : 1, sizeof **tets, tets));
   I2M_CALL(i2m_malloc(4 * (size_t)tl->ntets + 1, sizeof **verts, verts));
   for (uint32_t i = 0; i < tl->ntets; i++) {
+    prefetch_listed(S, dt, tl->tets, tl->ntets, i);
     const tetref_t e = tl->tets[i];
     if (i2m_dt_stamp(dt, e.t) != e.meta || S->tmark[e.t] != PACK_NONE) continue;
     S->tmark[e.t] = nt;

@@ -133,18 +133,21 @@ bool sched_runnable(const sched_t *S, sched_task_t t)
   return true;
 }
 
-void sched_give(sched_t *S, int rank, sched_task_t t)
+/* Task t given to `rank`: its block locked, and (take) its cells now the rank's. */
+static void lock_task(sched_t *S, int rank, sched_task_t t, bool take)
 {
   uint32_t cells[125];
   const uint32_t n = sched_block(S, t, cells);
   for (uint32_t i = 0; i < n; i++) {
     S->lock[cells[i]]++;
-    S->holder[cells[i]] = rank;
+    if (take) S->holder[cells[i]] = rank;
   }
   S->inflight[rank]++;
   S->tasks_given++;
   S->wide_given += t.wide;
 }
+
+void sched_give(sched_t *S, int rank, sched_task_t t) { lock_task(S, rank, t, true); }
 
 /* Tets of task t's block that `rank` would have to fetch. */
 static int64_t to_move(const sched_t *S, int rank, sched_task_t t)
@@ -298,12 +301,8 @@ uint32_t sched_pick_narrow(sched_t *S, int rank, uint32_t max, sched_task_t *out
       }
     }
     if (best_work == 0) break;
-    uint32_t cells[125];
-    const uint32_t n = sched_block(S, (sched_task_t){best, false}, cells);
-    for (uint32_t i = 0; i < n; i++) S->lock[cells[i]]++;
-    S->inflight[rank]++;
-    S->tasks_given++;
-    out[k++] = (sched_task_t){best, false};
+    out[k] = (sched_task_t){best, false};
+    lock_task(S, rank, out[k++], false);
   }
   return k;
 }

@@ -293,14 +293,18 @@ i2m_err_t dist_note_vertex(i2m_refine_worker_t *w, uint32_t v)
  * the marks of the vertices of the live one half as far (whose words have arrived by then).
  * Forced inline: GCC drops a call to a function that only prefetches under a condition. */
 #define PREFETCH_AHEAD 16
+static I2M_INLINE void prefetch_tet(const i2m_dt_t *dt, uint32_t t)
+{
+  I2M_PREFETCH(dt->tv + 4 * (size_t)t);
+  I2M_PREFETCH(&dt->meta[t]);
+}
+
 static I2M_INLINE void prefetch_listed(const struct submesh *S, const i2m_dt_t *dt, const tetref_t *list, uint32_t n,
                                        uint32_t i)
 {
   if (i + PREFETCH_AHEAD < n) {
-    const uint32_t t = list[i + PREFETCH_AHEAD].t;
-    I2M_PREFETCH(dt->tv + 4 * (size_t)t);
-    I2M_PREFETCH(&dt->meta[t]);
-    I2M_PREFETCH(&S->tmark[t]);
+    prefetch_tet(dt, list[i + PREFETCH_AHEAD].t);
+    I2M_PREFETCH(&S->tmark[list[i + PREFETCH_AHEAD].t]);
   }
   if (i + PREFETCH_AHEAD / 2 < n) { /* (a stale entry's slot may be a running task's: not read) */
     const tetref_t e = list[i + PREFETCH_AHEAD / 2];
@@ -314,15 +318,12 @@ static I2M_INLINE void prefetch_listed(const struct submesh *S, const i2m_dt_t *
  * coordinates (its cell is its centroid's). */
 static I2M_INLINE void prefetch_born(const i2m_dt_t *dt, const tetref_t *list, uint32_t n, uint32_t i)
 {
-  if (i + PREFETCH_AHEAD < n) {
-    const uint32_t t = list[i + PREFETCH_AHEAD].t;
-    I2M_PREFETCH(dt->tv + 4 * (size_t)t);
-    I2M_PREFETCH(&dt->meta[t]);
-  }
-  if (i + PREFETCH_AHEAD / 2 < n) {
-    const uint32_t *v = dt->tv + 4 * (size_t)list[i + PREFETCH_AHEAD / 2].t;
-    for (int j = 0; j < 4; j++)
-      if (v[j] < dt->cap_v) I2M_PREFETCH(i2m_dt_xyz(dt, v[j])); /* (a dead tet's row may be anything) */
+  if (i + PREFETCH_AHEAD < n) prefetch_tet(dt, list[i + PREFETCH_AHEAD].t);
+  if (i + PREFETCH_AHEAD / 2 < n) { /* (only a live one's: the others are skipped) */
+    const tetref_t e = list[i + PREFETCH_AHEAD / 2];
+    if (i2m_dt_stamp(dt, e.t) != e.meta) return;
+    const uint32_t *v = dt->tv + 4 * (size_t)e.t;
+    for (int j = 0; j < 4; j++) I2M_PREFETCH(i2m_dt_xyz(dt, v[j]));
   }
 }
 

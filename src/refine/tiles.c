@@ -729,8 +729,8 @@ void tiles_canonical_all(i2m_refine_t *r)
 #define ASYNC_GRANT 64
 static i2m_err_t grant_tile(i2m_refine_t *r, tile_t *tl, size_t work)
 {
-  const uint64_t grant = r->async_tasks && tl->grant < ASYNC_GRANT ? ASYNC_GRANT : tl->grant;
-  uint64_t want = grant * work / 4 + 64; /* (a fraction of the elements insert) */
+  if (r->async_tasks && tl->grant < ASYNC_GRANT) tl->grant = ASYNC_GRANT; /* (and it doubles from there) */
+  uint64_t want = (uint64_t)tl->grant * work / 4 + 64; /* (a fraction of the elements insert) */
   if (want > (1u << 24)) want = 1u << 24;
   return i2m_dt_slots_grant(r->dt, &tl->slots, (uint32_t)want, (uint32_t)(want / 4 + 64));
 }

@@ -6,8 +6,8 @@
 # At most I2M_TEST_JOBS (default: the cores, at most 4) run at once, in the order given (put
 # the longest first: a free slot takes the next one).  Each gets a private scratch directory
 # in I2M_TMP and LIMIT seconds (0: none): a hang fails that test at once instead of holding
-# the run until CI's own limit.  A PASS/FAIL line is printed when a test ends; the end of each
-# failed test's log follows the summary, so that the logs of tests that ran side by side do
+# the run until CI's own limit.  A PASS/FAIL line is printed when a test ends; each failed
+# test's own FAIL lines (with the 4 lines after each) and the end of its log follow the summary, so that the logs of tests that ran side by side do
 # not interleave.  Exit status: 0 when every test passed.
 set -u
 if [ "${1:-}" = --one ]; then # (one test, run by xargs below)
@@ -48,6 +48,10 @@ for cmd in "$@"; do
   name=$(basename "$cmd")
   [ -f "$results/$name.failed" ] || continue
   fail=1
+  if grep -q '^FAIL' "$results/$name.log"; then # (a script's own FAIL lines may lie far above its end)
+    echo "---- $name's FAIL lines:"
+    grep -A 4 '^FAIL' "$results/$name.log" | head -n 60
+  fi
   echo "---- the end of $name's log:"
   tail -n 40 "$results/$name.log"
 done

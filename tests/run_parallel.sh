@@ -7,8 +7,9 @@
 # the longest first: a free slot takes the next one).  Each gets a private scratch directory
 # in I2M_TMP and LIMIT seconds (0: none): a hang fails that test at once instead of holding
 # the run until CI's own limit.  A PASS/FAIL line is printed when a test ends; each failed
-# test's own FAIL lines (with the 4 lines after each) and the end of its log follow the summary, so that the logs of tests that ran side by side do
-# not interleave.  Exit status: 0 when every test passed.
+# test's own FAIL lines (with the 4 lines after each) and the end of its log follow the
+# summary, so that the logs of tests that ran side by side do not interleave.  Exit status: 0
+# when every test passed.
 set -u
 if [ "${1:-}" = --one ]; then # (one test, run by xargs below)
   label=$2 limit=$3 results=$4 cmd=$5

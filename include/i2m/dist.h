@@ -102,6 +102,7 @@ typedef struct {
    *  into the tiles' lists.  Where the communication figure goes, to drive it down. */
   double wait_data, pack, unpack, drop, merge;
   int64_t tasks, wide_tasks;
+  int64_t skipping_tasks;       /**< tasks that went without some sides of their block */
   int64_t tiles_in, tiles_out;  /**< submeshes received and sent */
   int64_t bytes_in, bytes_out;
   int64_t answered_while_refining; /**< submeshes sent while its threads refined */

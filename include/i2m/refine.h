@@ -275,10 +275,18 @@ void i2m_refine_dist_resolve(i2m_refine_t *r, uint32_t id);
 i2m_err_t i2m_refine_tiles_prepare(i2m_refine_t *r, const uint32_t *tiles, uint32_t n);
 /** Tile id's figures (I2M_TILE_NFIG of them): fig[0] its live bad elements and bridge points
  *  (its task's work), fig[1] its wide task's, fig[2] about how many tets it holds (its list's
- *  entries, some stale), fig[3] its bridge points, fig[4] those left to its wide task (its
- *  lists are cleared of stale entries). */
-#define I2M_TILE_NFIG 5
+ *  entries, some stale), fig[3] its bridge points, fig[4] those left to its wide task, fig[5]
+ *  the sides of the cell its task may go without (asynchronous mode, see i2m_refine_tile_skip;
+ *  else 0) (its lists are cleared of stale entries). */
+#define I2M_TILE_NFIG 6
 void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t fig[I2M_TILE_NFIG]);
+/** Tile id's next task goes without the neighbours beyond the sides in skip (bit 2a: lower
+ *  along axis a, 2a + 1: higher; 0: the whole block): its zone stops I2M_SKIP_MARGIN deltas
+ *  short of those sides, and what it cannot do stays in its lists for a task of the whole
+ *  block (not its wide task).  The dist layer's asynchronous mode: a task of a few elements
+ *  near one side fetches the cells there, not its whole block. */
+#define I2M_SKIP_MARGIN 3.0
+void i2m_refine_tile_skip(i2m_refine_t *r, uint32_t id, unsigned skip);
 /** The tiling's cells along each axis. */
 void i2m_refine_tiling_cells(const i2m_refine_t *r, int32_t n[3]);
 

@@ -55,7 +55,7 @@ typedef struct {
 
 /* One line of the trace: a task. */
 typedef struct {
-  int32_t cell, wide;
+  int32_t cell, wide, skip; /* (skip: the sides of its cell the task went without, sched_task_t) */
   double start, end;
   int64_t bytes_in, bytes_out, created;
 } trace_t;
@@ -191,7 +191,8 @@ static void clock_out(engine_t *E, double t) { E->fig.comm += i2m_wtime() - t; E
 
 /* ---- worker side ---- */
 
-/* The cells of the batch's blocks (each once), into cells[]; returns their number. */
+/* The cells of the batch's blocks (each once) that this rank holds (a task that skipped
+ * sides left the cells beyond them where they were), into cells[]; returns their number. */
 static uint32_t batch_cells(engine_t *E, uint32_t **cells)
 {
   static const uint32_t none = UINT32_MAX;
@@ -203,7 +204,7 @@ static uint32_t batch_cells(engine_t *E, uint32_t **cells)
     for (uint32_t i = 0; i < m; i++) {
       bool seen = false;
       for (uint32_t j = 0; j < n && !seen; j++) seen = (*cells)[j] == b[i];
-      if (!seen && b[i] != none) (*cells)[n++] = b[i];
+      if (!seen && b[i] != none && i2m_refine_holds(E->r, b[i])) (*cells)[n++] = b[i];
     }
   }
   return n;
@@ -234,7 +235,13 @@ static void cell_figures(engine_t *E, uint32_t c, bool count, int64_t fig[I2M_TI
   i2m_refine_tile_figures(E->r, c, fig);
   if (!E->slivers) return;
   fig[0] = count ? i2m_refine_tile_sliver_count(E->r, c) : 0;
-  fig[1] = fig[3] = fig[4] = 0;
+  fig[1] = fig[3] = fig[4] = fig[5] = 0;
+}
+
+/* A task in a message: its cell, then its wide flag and the sides it skips (wide + 2 skip). */
+static sched_task_t task_of(const int64_t *m)
+{
+  return (sched_task_t){(uint32_t)m[0], (m[1] & 1) != 0, (uint8_t)(m[1] >> 1)};
 }
 
 /* An assignment: tasks, and the holders of their blocks' cells; the submeshes held
@@ -244,7 +251,7 @@ static void on_assign(engine_t *E, const int64_t *m, int n)
   if (n < 2) fail(E, "bad assignment message");
   E->nbatch = (uint32_t)m[0];
   int at = 1;
-  for (uint32_t k = 0; k < E->nbatch; k++, at += 2) E->batch[k] = (sched_task_t){(uint32_t)m[at], m[at + 1] != 0};
+  for (uint32_t k = 0; k < E->nbatch; k++, at += 2) E->batch[k] = task_of(m + at);
   const int64_t nloc = m[at++];
   int64_t **per = NULL; /* cells to ask each rank for */
   int64_t *count = NULL;
@@ -341,6 +348,8 @@ static void start_batch(engine_t *E)
   for (uint32_t k = 0; k < E->nbatch; k++) {
     E->tiles[k] = E->batch[k].cell;
     wide |= E->batch[k].wide;
+    if (!E->batch[k].wide) i2m_refine_tile_skip(E->r, E->batch[k].cell, E->batch[k].skip);
+    E->fig.skipping_tasks += E->batch[k].skip != 0;
     i2m_refine_dist_resolve(E->r, E->batch[k].cell);
   }
   if (E->slivers) check(E, i2m_refine_slivers_dist_prepare(E->r, E->tiles, E->nbatch));
@@ -378,7 +387,7 @@ static void finish_batch(engine_t *E)
   m[at++] = E->nbatch;
   for (uint32_t k = 0; k < E->nbatch; k++) {
     m[at++] = E->batch[k].cell;
-    m[at++] = E->batch[k].wide;
+    m[at++] = E->batch[k].wide + 2 * (int64_t)E->batch[k].skip;
   }
   m[at++] = nc;
   for (uint32_t i = 0; i < nc; i++) {
@@ -390,7 +399,7 @@ static void finish_batch(engine_t *E)
   i2m_free(&cells);
   const double now = i2m_wtime() - E->t0;
   for (uint32_t k = 0; k < E->nbatch; k++)
-    E->trace[E->ntrace++] = (trace_t){(int32_t)E->batch[k].cell, E->batch[k].wide, E->batch_t0, now,
+    E->trace[E->ntrace++] = (trace_t){(int32_t)E->batch[k].cell, E->batch[k].wide, E->batch[k].skip, E->batch_t0, now,
                                       k == 0 ? E->batch_bytes_in : 0, k == 0 ? E->batch_bytes_out : 0, E->created[k]};
   E->fig.tasks += E->nbatch;
   for (uint32_t k = 0; k < E->nbatch; k++) E->fig.wide_tasks += E->batch[k].wide;
@@ -416,7 +425,7 @@ static void send_assign(engine_t *E, int q, const sched_task_t *tasks, uint32_t 
   m[at++] = n;
   for (uint32_t k = 0; k < n; k++) {
     m[at++] = tasks[k].cell;
-    m[at++] = tasks[k].wide;
+    m[at++] = tasks[k].wide + 2 * (int64_t)tasks[k].skip;
   }
   m[at++] = ncells;
   for (uint32_t i = 0; i < ncells; i++) {
@@ -426,12 +435,13 @@ static void send_assign(engine_t *E, int q, const sched_task_t *tasks, uint32_t 
   post(E, q, TAG_ASSIGN, m, at * sizeof *m, MPI_INT64_T);
 }
 
-/* The cells of tasks' blocks (each once) and their holders now (before the tasks take them). */
+/* The cells of tasks' fetch blocks (each once) and their holders now (before the tasks take
+ * them). */
 static uint32_t blocks_of(engine_t *E, const sched_task_t *tasks, uint32_t n, uint32_t *cells, int32_t *holder)
 {
   uint32_t nc = 0, b[125];
   for (uint32_t k = 0; k < n; k++) {
-    const uint32_t m = sched_block(&E->S, tasks[k], b);
+    const uint32_t m = sched_fetch_block(&E->S, tasks[k], b);
     for (uint32_t i = 0; i < m; i++) {
       bool seen = false;
       for (uint32_t j = 0; j < nc && !seen; j++) seen = cells[j] == b[i];
@@ -576,7 +586,7 @@ static void det_next(engine_t *E)
     while (n == 0 && E->wide_next < E->nwide) {
       const uint32_t c = E->wide_list[E->wide_next++];
       if (S->wide[c] <= 0) continue;
-      const sched_task_t t = {c, true};
+      const sched_task_t t = {c, true, 0};
       const int q = sched_best_rank(S, t);
       const uint32_t nc = blocks_of(E, &t, 1, cells, holder);
       sched_give(S, q, t);
@@ -606,12 +616,12 @@ static void on_feedback(engine_t *E, int q, const int64_t *m, int n)
   int at = 0;
   const uint32_t nt = (uint32_t)m[at++];
   if (nt > 4096 || n < 2) fail(E, "bad feedback message");
-  for (uint32_t k = 0; k < nt; k++, at += 2) tasks[k] = (sched_task_t){(uint32_t)m[at], m[at + 1] != 0};
+  for (uint32_t k = 0; k < nt; k++, at += 2) tasks[k] = task_of(m + at);
   const uint32_t nc = (uint32_t)m[at++];
   sched_cell_t *cells = NULL;
   check(E, i2m_malloc(nc + 1, sizeof *cells, &cells));
   for (uint32_t i = 0; i < nc; i++, at += 1 + I2M_TILE_NFIG)
-    cells[i] = (sched_cell_t){(uint32_t)m[at], m[at + 1], m[at + 2], m[at + 3], m[at + 4], m[at + 5]};
+    cells[i] = (sched_cell_t){(uint32_t)m[at], m[at + 1], m[at + 2], m[at + 3], m[at + 4], m[at + 5], m[at + 6]};
   if (E->slivers) /* (the slivers of the cells not done yet: as counted when the pass began) */
     for (uint32_t i = 0; i < nc; i++) cells[i].work = E->S.work[cells[i].cell];
   sched_feedback(&E->S, q, tasks, nt, cells, nc);
@@ -752,6 +762,7 @@ static i2m_err_t engine_seed(engine_t *E)
     S->tets[c] = fig[F * c + 2];
     S->points[c] = fig[F * c + 3];
     S->wpoints[c] = fig[F * c + 4];
+    S->skip[c] = (uint8_t)fig[F * c + 5];
     S->lock[c] = 0;
   }
   i2m_free(&fig);
@@ -900,13 +911,13 @@ static i2m_err_t write_trace(const i2m_par_t *par, const engine_t *E, const char
     err = i2m_outfile_open(&out, path, "w");
     if (err == I2M_OK) {
       FILE *f = out.f;
-      fprintf(f, "# rank cell wide start_s end_s bytes_in bytes_out tets_created\n");
+      fprintf(f, "# rank cell wide start_s end_s bytes_in bytes_out tets_created skip\n");
       int q = 0;
       for (int i = 0; i < total; i++) {
         while (q + 1 < par->size && i * (int)sizeof(trace_t) >= displs[q + 1]) q++;
         const trace_t *t = &all[i];
-        fprintf(f, "%d %d %d %.6f %.6f %lld %lld %lld\n", q, t->cell, t->wide, t->start, t->end, (long long)t->bytes_in,
-                (long long)t->bytes_out, (long long)t->created);
+        fprintf(f, "%d %d %d %.6f %.6f %lld %lld %lld %d\n", q, t->cell, t->wide, t->start, t->end, (long long)t->bytes_in,
+                (long long)t->bytes_out, (long long)t->created, t->skip);
       }
       err = i2m_outfile_commit(&out);
     }

@@ -18,6 +18,7 @@ i2m_err_t sched_init(sched_t *S, const int32_t n[3], int nranks)
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->tets, &S->tets);
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->points, &S->points);
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->wpoints, &S->wpoints);
+  if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->skip, &S->skip);
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->holder, &S->holder); /* rank 0 holds the coarse mesh */
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->home, &S->home);
   if (err == I2M_OK) err = i2m_calloc(c, sizeof *S->lock, &S->lock);
@@ -36,6 +37,7 @@ void sched_free(sched_t *S)
   i2m_free(&S->tets);
   i2m_free(&S->points);
   i2m_free(&S->wpoints);
+  i2m_free(&S->skip);
   i2m_free(&S->holder);
   i2m_free(&S->home);
   i2m_free(&S->lock);
@@ -104,14 +106,16 @@ void sched_partition(sched_t *S)
   i2m_free(&order);
 }
 
-uint32_t sched_block(const sched_t *S, sched_task_t t, uint32_t *cells)
+/* The cells of task t's block, without the layers beyond the sides in skip. */
+static uint32_t block_cells(const sched_t *S, sched_task_t t, unsigned skip, uint32_t *cells)
 {
   const int rad = t.wide ? 2 : 1;
   int32_t c[3], lo[3], hi[3];
   coords(S, t.cell, c);
   for (int a = 0; a < 3; a++) {
-    lo[a] = c[a] - rad < 0 ? 0 : c[a] - rad;
-    hi[a] = c[a] + rad >= S->n[a] ? S->n[a] - 1 : c[a] + rad;
+    const int rlo = skip >> (2 * a) & 1 ? 0 : rad, rhi = skip >> (2 * a + 1) & 1 ? 0 : rad;
+    lo[a] = c[a] - rlo < 0 ? 0 : c[a] - rlo;
+    hi[a] = c[a] + rhi >= S->n[a] ? S->n[a] - 1 : c[a] + rhi;
   }
   uint32_t n = 0;
   for (int32_t k = lo[2]; k <= hi[2]; k++)
@@ -119,6 +123,13 @@ uint32_t sched_block(const sched_t *S, sched_task_t t, uint32_t *cells)
       for (int32_t i = lo[0]; i <= hi[0]; i++)
         cells[n++] = ((uint32_t)k * (uint32_t)S->n[1] + (uint32_t)j) * (uint32_t)S->n[0] + (uint32_t)i;
   return n;
+}
+
+uint32_t sched_block(const sched_t *S, sched_task_t t, uint32_t *cells) { return block_cells(S, t, 0, cells); }
+
+uint32_t sched_fetch_block(const sched_t *S, sched_task_t t, uint32_t *cells)
+{
+  return block_cells(S, t, t.wide ? 0 : t.skip, cells);
 }
 
 static bool has_work(const sched_t *S, sched_task_t t) { return (t.wide ? S->wide[t.cell] : S->work[t.cell]) > 0; }
@@ -133,15 +144,14 @@ bool sched_runnable(const sched_t *S, sched_task_t t)
   return true;
 }
 
-/* Task t given to `rank`: its block locked, and (take) its cells now the rank's. */
+/* Task t given to `rank`: its block locked, and (take) its fetch block's cells now the rank's. */
 static void lock_task(sched_t *S, int rank, sched_task_t t, bool take)
 {
   uint32_t cells[125];
-  const uint32_t n = sched_block(S, t, cells);
-  for (uint32_t i = 0; i < n; i++) {
-    S->lock[cells[i]]++;
-    if (take) S->holder[cells[i]] = rank;
-  }
+  uint32_t n = sched_block(S, t, cells);
+  for (uint32_t i = 0; i < n; i++) S->lock[cells[i]]++;
+  n = take ? sched_fetch_block(S, t, cells) : 0;
+  for (uint32_t i = 0; i < n; i++) S->holder[cells[i]] = rank;
   S->inflight[rank]++;
   S->tasks_given++;
   S->wide_given += t.wide;
@@ -149,11 +159,11 @@ static void lock_task(sched_t *S, int rank, sched_task_t t, bool take)
 
 void sched_give(sched_t *S, int rank, sched_task_t t) { lock_task(S, rank, t, true); }
 
-/* Tets of task t's block that `rank` would have to fetch. */
+/* Tets of task t's fetch block that `rank` would have to fetch. */
 static int64_t to_move(const sched_t *S, int rank, sched_task_t t)
 {
   uint32_t cells[125];
-  const uint32_t n = sched_block(S, t, cells);
+  const uint32_t n = sched_fetch_block(S, t, cells);
   int64_t m = 0;
   for (uint32_t i = 0; i < n; i++)
     if (S->holder[cells[i]] != rank) m += S->tets[cells[i]] + 1;
@@ -218,11 +228,11 @@ static uint32_t pick_tasks(sched_t *S, int rank, uint32_t max, sched_task_t *out
 {
   uint32_t k = 0;
   while (k < max) {
-    sched_task_t best = {0, false};
+    sched_task_t best = {0, false, 0};
     int best_home = 0;
     int64_t best_move = INT64_MAX, best_work = -1;
     for (uint32_t c = 0; c < S->ncells; c++) { /* the cheapest to fetch, its share first, the busiest */
-      const sched_task_t t = {c, false};
+      const sched_task_t t = {c, false, S->skip[c]};
       if (!sched_runnable(S, t)) continue;
       const int h = S->home[c] == rank;
       const int64_t m = to_move(S, rank, t);
@@ -237,7 +247,7 @@ static uint32_t pick_tasks(sched_t *S, int rank, uint32_t max, sched_task_t *out
     }
     if (best_work < 0 && k == 0) /* no normal task: a wide one, alone */
       for (uint32_t c = 0; c < S->ncells; c++) {
-        const sched_task_t t = {c, true};
+        const sched_task_t t = {c, true, 0};
         if (!sched_runnable(S, t)) continue;
         const int64_t m = to_move(S, rank, t);
         if (!within_cap(S, rank, m, cap) || (m > 0 && !stalled && !may_fetch(S, rank, t, m, total))) continue;
@@ -259,7 +269,7 @@ bool sched_other_could_run(sched_t *S, int rank)
     if (q == rank || !S->waiting[q]) continue;
     for (uint32_t c = 0; c < S->ncells; c++)
       for (int w = 0; w < 2; w++) {
-        const sched_task_t t = {c, w != 0};
+        const sched_task_t t = {c, w != 0, w ? 0 : S->skip[c]};
         if (!sched_runnable(S, t)) continue;
         if (within_cap(S, q, to_move(S, q, t), cap)) return true;
       }
@@ -294,14 +304,14 @@ uint32_t sched_pick_narrow(sched_t *S, int rank, uint32_t max, sched_task_t *out
     int64_t best_work = 0;
     uint32_t best = 0;
     for (uint32_t c = 0; c < S->ncells; c++) {
-      const sched_task_t t = {c, false};
+      const sched_task_t t = {c, false, 0};
       if (S->holder[c] == rank && S->work[c] > best_work && sched_runnable(S, t)) {
         best = c;
         best_work = S->work[c];
       }
     }
     if (best_work == 0) break;
-    out[k] = (sched_task_t){best, false};
+    out[k] = (sched_task_t){best, false, 0};
     lock_task(S, rank, out[k++], false);
   }
   return k;
@@ -330,6 +340,7 @@ void sched_feedback(sched_t *S, int rank, const sched_task_t *tasks, uint32_t nt
     S->tets[c->cell] = c->tets;
     S->points[c->cell] = c->points;
     S->wpoints[c->cell] = c->wpoints;
+    S->skip[c->cell] = (uint8_t)c->skip;
   }
 }
 
@@ -351,7 +362,7 @@ bool sched_busy(const sched_t *S)
 int sched_best_rank(const sched_t *S, sched_task_t t)
 {
   uint32_t cells[125];
-  const uint32_t n = sched_block(S, t, cells);
+  const uint32_t n = sched_fetch_block(S, t, cells);
   int best = 0;
   int64_t most = -1;
   for (int r = 0; r < S->nranks; r++) {
@@ -416,7 +427,7 @@ uint32_t sched_phase(sched_t *S, int color, bool points_only, sched_task_t *out,
   qsort(list, n, sizeof *list, cmp_by_work);
   int64_t total = held_tets(S);
   for (uint32_t k = 0; k < n; k++) {
-    const sched_task_t t = {list[k].cell, false};
+    const sched_task_t t = {list[k].cell, false, 0};
     const int r = phase_rank(S, t, S->held, total);
     out[k] = t;
     owner[k] = r;

@@ -9,8 +9,11 @@
  * synchronise.  It knows, from the feedback after each task, the bad elements of every cell
  * (normal and wide) and the tets it holds, and where every cell's submesh lives (the Location
  * array): a task goes to the rank that asks, the one whose blocks' submeshes it already holds
- * first; its block's cells then belong to that rank.  Ranks that ask while nothing can be
- * given wait in a list; the run ends exactly when no cell has work and no task is in flight. */
+ * first; its block's cells then belong to that rank.  A task whose few elements all lie away
+ * from some sides of its cell (its feedback says which: skip) needs only the part of its block
+ * on the other sides (its fetch block): it still locks the whole block, but fetches, takes and
+ * is priced by that part only.  Ranks that ask while nothing can be given wait in a list; the
+ * run ends exactly when no cell has work and no task is in flight. */
 #ifndef I2M_DIST_SCHED_H
 #define I2M_DIST_SCHED_H
 
@@ -31,10 +34,19 @@
  *  (about 9 bad elements, 100 k tets); 30 left one rank idle for a third of the run. */
 #define SCHED_MOVE_WORTH 60.0
 
-/** A task: a cell (wide: its wide task, a block of 5^3 cells). */
+/** The sides of a cell (bit 2a: towards lower coordinates along axis a, bit 2a + 1: higher)
+ *  whose neighbours a task of it may go without (sched_task_t.skip): all six, the cell alone;
+ *  none, the whole block. */
+#define SCHED_SIDES 6
+
+/** A task: a cell (wide: its wide task, a block of 5^3 cells).  A normal task whose elements
+ *  all lie away from some sides of its cell (skip) runs on the part of its block on the
+ *  others (its fetch block): it locks the whole block, but the cells beyond the skipped sides
+ *  are neither fetched nor taken, and its zone stops short of them (i2m_refine_tile_skip). */
 typedef struct {
   uint32_t cell;
   bool wide;
+  uint8_t skip; /* sides skipped (0: the whole block) */
 } sched_task_t;
 
 /** What a rank tells the scheduler about one cell after a task. */
@@ -43,6 +55,7 @@ typedef struct {
   int64_t work, wide, tets; /* bad elements, of them for the wide task, tets held */
   int64_t points;           /* bridge points its task inserts first (counted in work) */
   int64_t wpoints;          /* bridge points its wide task inserts first (counted in wide) */
+  int64_t skip;             /* sides its task may skip (i2m_refine_tile_figures) */
 } sched_cell_t;
 
 typedef struct {
@@ -54,6 +67,7 @@ typedef struct {
   int64_t *tets;     /* [ncells] tets of its submesh */
   int64_t *points;   /* [ncells] bridge points for its task (the deterministic mode's first stage) */
   int64_t *wpoints;  /* [ncells] bridge points for its wide task (the same stage's end) */
+  uint8_t *skip;     /* [ncells] sides its task may skip (asynchronous mode; 0: none) */
   int32_t *holder;   /* [ncells] the rank that holds its submesh (Location) */
   int32_t *home;     /* [ncells] the rank whose share of the block the cell is in (sched_partition) */
   uint32_t *lock;    /* [ncells] tasks in flight whose block holds it */
@@ -74,6 +88,10 @@ void sched_free(sched_t *S);
 /** The cells of a task's block (radius 1, or 2 for a wide task), clipped to the grid:
  *  cells[] gets them (room for 125), returns their number. */
 uint32_t sched_block(const sched_t *S, sched_task_t t, uint32_t *cells);
+
+/** The cells of task t's block that it needs present (its fetch block: the block without the
+ *  layers beyond the sides it skips), as sched_block. */
+uint32_t sched_fetch_block(const sched_t *S, sched_task_t t, uint32_t *cells);
 
 /** Can task t run now (it has work, and no cell of its block is locked)? */
 bool sched_runnable(const sched_t *S, sched_task_t t);
@@ -132,7 +150,7 @@ uint32_t sched_wide_list(const sched_t *S, bool points, uint32_t *out);
 /** A task given to a rank (its block locked and now the rank's). */
 void sched_give(sched_t *S, int rank, sched_task_t t);
 
-/** The rank that holds the most tets of task t's block. */
+/** The rank that holds the most tets of task t's fetch block. */
 int sched_best_rank(const sched_t *S, sched_task_t t);
 
 /** A rank that holds more than this above the mean of the output tets gives cells away

@@ -100,8 +100,8 @@ void i2m_report_print(FILE *f, const i2m_report_t *r)
             r->nt ? (double)d->bytes / (double)r->nt : 0.0, d->fine_seconds);
     for (int k = 0; k < d->ranks; k++) {
       const i2m_rank_figures_t *g = &d->rank[k];
-      fprintf(f, "    rank %-4d  preprocess %.2f s, meshing %.2f s, communication %.2f s, idle %.2f s; %lld tasks, %lld insertions, %lld tets, %lld submeshes in, %lld out (%lld while refining), peak %.0f MB\n",
-              k, g->preprocess, g->meshing, g->comm, g->idle, (long long)g->tasks, (long long)g->insertions, (long long)g->tets,
+      fprintf(f, "    rank %-4d  preprocess %.2f s, meshing %.2f s, communication %.2f s, idle %.2f s; %lld tasks (%lld on part of their block), %lld insertions, %lld tets, %lld submeshes in, %lld out (%lld while refining), peak %.0f MB\n",
+              k, g->preprocess, g->meshing, g->comm, g->idle, (long long)g->tasks, (long long)g->skipping_tasks, (long long)g->insertions, (long long)g->tets,
               (long long)g->tiles_in, (long long)g->tiles_out, (long long)g->answered_while_refining, g->peak_rss / 1048576.0);
     }
     if (d->balance_calls)
@@ -276,11 +276,11 @@ static void json_dist(FILE *f, const i2m_report_t *r)
     const i2m_rank_figures_t *g = &d->rank[k];
     fprintf(f, "%s\n    {\"rank\": %d, \"preprocess_seconds\": %.4f, \"meshing_seconds\": %.4f, \"comm_seconds\": %.4f, "
                "\"idle_seconds\": %.4f, \"comm_parts_seconds\": {\"wait_data\": %.4f, \"pack\": %.4f, \"unpack\": %.4f, "
-               "\"drop\": %.4f, \"merge\": %.4f}, \"tasks\": %lld, \"wide_tasks\": %lld, \"submeshes_in\": %lld, \"submeshes_out\": %lld, "
+               "\"drop\": %.4f, \"merge\": %.4f}, \"tasks\": %lld, \"wide_tasks\": %lld, \"skipping_tasks\": %lld, \"submeshes_in\": %lld, \"submeshes_out\": %lld, "
                "\"bytes_in\": %lld, \"bytes_out\": %lld, \"answered_while_refining\": %lld, \"insertions\": %lld, "
                "\"removals\": %lld, \"tets\": %lld, \"peak_tets\": %lld, \"peak_rss_bytes\": %.0f}",
             k ? "," : "", k, g->preprocess, g->meshing, g->comm, g->idle, g->wait_data, g->pack, g->unpack, g->drop, g->merge,
-            (long long)g->tasks, (long long)g->wide_tasks,
+            (long long)g->tasks, (long long)g->wide_tasks, (long long)g->skipping_tasks,
             (long long)g->tiles_in, (long long)g->tiles_out, (long long)g->bytes_in, (long long)g->bytes_out,
             (long long)g->answered_while_refining, (long long)g->insertions, (long long)g->removals, (long long)g->tets,
             (long long)g->peak_tets, g->peak_rss);

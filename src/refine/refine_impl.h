@@ -188,6 +188,9 @@ typedef struct {
   uint32_t ntets, cap_tets, live_tets; /* (live_tets: when the list was last compacted) */
   bool held;          /* dist: this process holds the tile's tets */
   bool dirty;         /* its lists got elements in an order of no one's (tiles_canonical) */
+  uint8_t skip;       /* dist: the sides of the cell its next task goes without (i2m_refine_tile_skip) */
+  uint8_t skip_need;  /* dist: sides that elements a task went without could not do need */
+  bool whole_next;    /* dist: such an element that needs none of the sides skipped (its next task: the whole block) */
   i2m_bridge_point_t *pts, *wpts; /* dist: bridge points for its task, its wide task (inserted first) */
   uint32_t npts, cap_pts, nwpts, cap_wpts;
 } tile_t;
@@ -233,6 +236,7 @@ struct i2m_refine_worker {
   uint32_t tile_id;
   bool tile_full;       /* the tile's slots ran out: stop until the next phase */
   bool tile_wide;       /* it runs the tile's wide task (what it cannot do is stuck) */
+  double part_zone[6];  /* dist: the zone of a task that goes without some sides */
   handoff_t *out;       /* this phase's hand-overs */
   size_t nout, cap_out;
   tetref_t *born;       /* dist: the tets it made (filed in their tiles by i2m_refine_dist_merge) */

@@ -175,11 +175,45 @@ i2m_err_t tiles_route(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t me
                         (handoff_t){to, w->tile_id, w->tile->seq++, level, t, meta, {0, 0}, HAND_QUEUE});
 }
 
+static void tile_box(const tiling_t *g, uint32_t id, double box[6]);
+
+/* The sides of box that tet t's circumball grown by `grow` times its radius and `margin` meets
+ * (all six for a flat tet). */
+static unsigned ball_sides(const i2m_refine_t *r, uint32_t t, const double box[6], double grow, double margin)
+{
+  tet_geom_t tg;
+  tet_centre(r, t, &tg);
+  if (!isfinite(tg.r2)) return (1u << 6) - 1;
+  const double reach = grow * sqrt(tg.r2) + margin;
+  unsigned sides = 0;
+  for (int a = 0; a < 3; a++) {
+    if (tg.cc[a] - reach < box[a]) sides |= 1u << (2 * a);
+    if (tg.cc[a] + reach > box[3 + a]) sides |= 1u << (2 * a + 1);
+  }
+  return sides;
+}
+
+/* An element that a task going without some sides could not do: the sides it needs (its
+ * ball grown twice as far as skip_sides grows it), for the next task; if it seems to need none
+ * of those skipped, the cell's next task takes the whole block. */
+static void note_skipped_need(i2m_refine_worker_t *w, int level, uint32_t t)
+{
+  const i2m_refine_t *r = w->r;
+  tile_t *tl = w->tile;
+  double box[6];
+  tile_box(r->tiling, w->tile_id, box);
+  const unsigned sides = level >= 0 ? ball_sides(r, t, box, 3.0, 2 * I2M_SKIP_MARGIN * r->delta) : 0;
+  if (sides & tl->skip) tl->skip_need |= (uint8_t)sides;
+  else tl->whole_next = true;
+}
+
 i2m_err_t tiles_defer(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t meta, pending_t pv)
 {
   const tiling_t *g = w->r->tiling;
   const uint32_t to = g->octree ? w->tile_id : TILE_NONE;
-  const int32_t where = !g->octree ? HAND_QUEUE : w->tile_wide ? HAND_STUCK : HAND_WIDE;
+  const bool part = g->octree && !w->tile_wide && w->tile->skip; /* (a task with more sides will try) */
+  if (part) note_skipped_need(w, level, t);
+  const int32_t where = !g->octree || part ? HAND_QUEUE : w->tile_wide ? HAND_STUCK : HAND_WIDE;
   return handoff_append(&w->out, &w->nout, &w->cap_out, (handoff_t){to, w->tile_id, w->tile->seq++, level, t, meta, pv, where});
 }
 
@@ -212,12 +246,45 @@ static void swap_tile(i2m_refine_worker_t *w, tile_t *tl, bool wide)
   else swap_lists(w, tl->q, &tl->pend, &tl->npend, &tl->cap_pend, &tl->slots);
 }
 
+/* The cell of tile id: lo, hi (world). */
+static void tile_box(const tiling_t *g, uint32_t id, double box[6])
+{
+  int32_t c[3];
+  tile_coords(g, id, c);
+  for (int a = 0; a < 3; a++) {
+    box[a] = g->cells.origin[a] + c[a] * g->side[a];
+    box[3 + a] = box[a] + g->side[a];
+  }
+}
+
+/* The zone of a task of tile id that goes without the sides in skip: its normal zone, but
+ * margin short of the cell's faces on those sides. */
+static void skip_zone(const tiling_t *g, uint32_t id, unsigned skip, double margin, double zone[6])
+{
+  double box[6];
+  tile_box(g, id, box);
+  for (int a = 0; a < 3; a++) {
+    zone[a] = skip >> (2 * a) & 1 ? box[a] + margin : g->tile[id].zone[a];
+    zone[3 + a] = skip >> (2 * a + 1) & 1 ? box[3 + a] - margin : g->tile[id].zone[3 + a];
+  }
+}
+
+void i2m_refine_tile_skip(i2m_refine_t *r, uint32_t id, unsigned skip) { r->tiling->tile[id].skip = (uint8_t)skip; }
+
 void tiles_bind(i2m_refine_worker_t *w, uint32_t id, bool wide)
 {
   const tiling_t *g = w->r->tiling;
   tile_t *tl = &g->tile[id];
   swap_tile(w, tl, wide);
   w->ctx.zone = wide ? tl->wzone : tl->zone;
+  if (g->octree && !wide && tl->skip) {
+    skip_zone(g, id, tl->skip, I2M_SKIP_MARGIN * w->r->delta, w->part_zone);
+    w->ctx.zone = w->part_zone;
+  }
+  if (!wide) { /* (this task's elements that it cannot do will say what they need) */
+    tl->whole_next = false;
+    tl->skip_need = 0;
+  }
   w->ctx.block = !g->octree ? NULL : wide ? &tl->wblock : &tl->block;
   w->ctx.bounded = true;
   w->ctx.locking = false; /* (zones instead of locks) */
@@ -239,6 +306,7 @@ uint32_t tiles_of_block(const tiling_t *g, const i2m_dt_block_t *b, uint32_t out
 void tiles_unbind(i2m_refine_worker_t *w)
 {
   swap_tile(w, w->tile, w->tile_wide);
+  if (!w->tile_wide) w->tile->skip = 0; /* (set for each task: i2m_refine_tile_skip) */
   w->ctx.zone = NULL;
   w->ctx.block = NULL;
   w->ctx.bounded = false;
@@ -861,6 +929,30 @@ i2m_err_t i2m_refine_tiles_prepare(i2m_refine_t *r, const uint32_t *tiles, uint3
   return vgrid_reserve(&r->freev, r->dt->cap_v);
 }
 
+/* A task of at most this many elements may go without some sides (skip_sides looks at each). */
+#define SKIP_MAX_WORK 4096
+/* The sides of its cell that a task of tile id's elements may go without (see
+ * i2m_refine_tile_skip): those that no element's circumball, its radius grown by half and the
+ * margin, meets, nor any element its last task could not do (note_skipped_need); 0 when its
+ * elements are many, any is a pending removal or a bridge point, or one that its last task
+ * could not do seemed to need none of the sides skipped.  The asynchronous mode only. */
+static unsigned skip_sides(const i2m_refine_t *r, uint32_t id)
+{
+  const tiling_t *g = r->tiling;
+  const tile_t *tl = &g->tile[id];
+  const double margin = I2M_SKIP_MARGIN * r->delta;
+  const size_t work = tile_work(tl);
+  if (!r->async_tasks || !g->octree || !work || work > SKIP_MAX_WORK || tl->whole_next || tl->npend || tl->npts) return 0;
+  for (int a = 0; a < 3; a++)
+    if (g->side[a] < 4 * margin) return 0;
+  double box[6];
+  tile_box(g, id, box);
+  unsigned need = tl->skip_need;
+  for (int l = 0; l < NLEVELS && need != (1u << 6) - 1; l++)
+    for (size_t i = 0; i < tl->q[l].n && need != (1u << 6) - 1; i++) need |= ball_sides(r, tl->q[l].e[i][0], box, 1.5, margin);
+  return ~need & ((1u << 6) - 1);
+}
+
 void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t fig[I2M_TILE_NFIG])
 {
   tile_t *tl = &r->tiling->tile[id];
@@ -872,6 +964,7 @@ void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t fig[I2M_TILE_
   fig[2] = tl->ntets; /* (an estimate: stale entries are dropped when the list grows) */
   fig[3] = tl->npts;
   fig[4] = tl->nwpts;
+  fig[5] = skip_sides(r, id);
 }
 
 void i2m_refine_tiling_cells(const i2m_refine_t *r, int32_t n[3])

@@ -110,7 +110,7 @@ static void check_block_grid(const int32_t n[3])
   uint32_t cells[125];
   for (uint32_t c = 0; c < S.ncells; c++)
     for (int w = 0; w < 2; w++) {
-      const sched_task_t t = {c, w != 0};
+      const sched_task_t t = {c, w != 0, 0};
       const uint32_t m = sched_block(&S, t, cells);
       int32_t x[3];
       xyz(n, c, x);
@@ -144,19 +144,19 @@ static void test_block_clipping(void)
   CU_ASSERT_FATAL(sched_init(&S, n8, 2) == I2M_OK);
   for (int i = 0; i < 8; i++) { /* the eight corners */
     const uint32_t c = (uint32_t)((i & 1) * 7 + ((i >> 1) & 1) * 56 + ((i >> 2) & 1) * 448);
-    CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){c, false}, cells), 8);
-    CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){c, true}, cells), 27);
+    CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){c, false, 0}, cells), 8);
+    CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){c, true, 0}, cells), 27);
   }
-  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){3 + 8 * 3 + 64 * 3, false}, cells), 27);
-  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){3 + 8 * 3 + 64 * 3, true}, cells), 125);
-  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){1 + 8 * 0 + 64 * 7, true}, cells), 4 * 3 * 3); /* on an edge */
+  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){3 + 8 * 3 + 64 * 3, false, 0}, cells), 27);
+  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){3 + 8 * 3 + 64 * 3, true, 0}, cells), 125);
+  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){1 + 8 * 0 + 64 * 7, true, 0}, cells), 4 * 3 * 3); /* on an edge */
   sched_free(&S);
   CU_ASSERT_FATAL(sched_init(&S, n6, 3) == I2M_OK);
   CU_ASSERT_EQUAL(S.ncells, 120);
-  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){119, false}, cells), 8); /* (5,3,4) */
-  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){119, true}, cells), 27);
-  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){2 + 6 * 1 + 24 * 2, true}, cells), 5 * 4 * 5); /* (2,1,2) */
-  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){2 + 6 * 1 + 24 * 2, false}, cells), 27);
+  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){119, false, 0}, cells), 8); /* (5,3,4) */
+  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){119, true, 0}, cells), 27);
+  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){2 + 6 * 1 + 24 * 2, true, 0}, cells), 5 * 4 * 5); /* (2,1,2) */
+  CU_ASSERT_EQUAL(sched_block(&S, (sched_task_t){2 + 6 * 1 + 24 * 2, false, 0}, cells), 27);
   sched_free(&S);
 }
 
@@ -380,7 +380,7 @@ static bool check_state(sim_t *m)
     EXPECT(m, locks <= 1, "cell %u is in %u blocks in flight", c, locks);
     EXPECT(m, S->lock[c] == locks, "cell %u: lock %u, but %u tasks in flight hold it", c, S->lock[c], locks);
     for (int w = 0; w < 2; w++) {
-      const sched_task_t t = {c, w != 0};
+      const sched_task_t t = {c, w != 0, 0};
       EXPECT(m, sched_runnable(S, t) == model_runnable(m, t), "cell %u%s: sched_runnable says %d", c, w ? " (wide)" : "",
              sched_runnable(S, t));
     }
@@ -431,7 +431,7 @@ static bool model_rank_could_run(const sim_t *m, const int32_t *holder, int q, i
     if (holder[c] == q) held += m->S.tets[c] + 1;
   for (uint32_t c = 0; c < m->S.ncells; c++)
     for (int w = 0; w < 2; w++) {
-      const sched_task_t t = {c, w != 0};
+      const sched_task_t t = {c, w != 0, 0};
       if (!model_runnable(m, t)) continue;
       const int64_t f = fetch_cost(m, holder, q, t);
       if (f == 0 || held + f <= cap) return true;
@@ -478,7 +478,7 @@ static bool check_pick(sim_t *m, int rank, uint32_t max, const sched_task_t *t, 
   bool runnable_normal = false, runnable_wide = false;
   int64_t cheapest = INT64_MAX;
   for (uint32_t c = 0; c < m->S.ncells; c++) { /* (the model still has none of these tasks in flight) */
-    const sched_task_t tn = {c, false}, tw = {c, true};
+    const sched_task_t tn = {c, false, 0}, tw = {c, true, 0};
     if (model_runnable(m, tn) && model_may_fetch(m, saved, rank, tn)) {
       runnable_normal = true;
       const int64_t f = fetch_cost(m, saved, rank, tn);
@@ -540,7 +540,7 @@ static bool sim_request(sim_t *m, int rank)
 /* New figures of one cell of a finished task's block. */
 static sched_cell_t new_figures(sim_t *m, uint32_t c, const batch_t *b)
 {
-  sched_cell_t f = {c, m->work[c], m->wide[c], below(&m->rng, 3000), m->S.points[c], m->S.wpoints[c]};
+  sched_cell_t f = {c, m->work[c], m->wide[c], below(&m->rng, 3000), m->S.points[c], m->S.wpoints[c], 0};
   bool centre = false;
   for (uint32_t k = 0; k < b->n; k++) {
     if (b->t[k].cell != c) continue;
@@ -679,7 +679,7 @@ static uint32_t model_phase(sim_t *m, int colour, bool points_only, int *expect,
     order[k] = c;
   }
   for (uint32_t i = 0; i < n; i++) {
-    const sched_task_t t = {order[i], false};
+    const sched_task_t t = {order[i], false, 0};
     int64_t total = 0;
     int64_t *held = calloc((size_t)m->P, sizeof *held);
     EXPECT(m, held, "out of memory");
@@ -763,7 +763,7 @@ static bool det_wide(sim_t *m)
   if (!good) fprintf(stderr, "the wide list differs from the cells with wide work\n");
   for (uint32_t i = 0; i < n && good; i++) {
     if (m->wide[list[i]] <= 0) continue; /* (done by an earlier one) */
-    const sched_task_t t = {list[i], true};
+    const sched_task_t t = {list[i], true, 0};
     const int q = sched_best_rank(&m->S, t);
     good = q == model_best(m, t);
     sched_give(&m->S, q, t);
@@ -879,14 +879,14 @@ static void test_busy_by_hand(void)
   CU_ASSERT(S.holder[100] == 2 && S.lock[100] == 1 && S.inflight[2] == 1);
   CU_ASSERT_EQUAL(sched_pick(&S, 1, 4, t), 0);
   S.work[100 + 3] = 1; /* three cells away from a wide task: its block overlaps, cannot run */
-  CU_ASSERT(!sched_runnable(&S, (sched_task_t){103, false}));
+  CU_ASSERT(!sched_runnable(&S, (sched_task_t){103, false, 0}));
   CU_ASSERT_EQUAL(sched_pick(&S, 1, 4, t), 0);
   S.work[103] = 0;
   S.work[100 + 4] = 1; /* four: it can */
   CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 1, 4, t), 1);
   CU_ASSERT(t[0].cell == 104 && !t[0].wide);
-  const sched_cell_t done_wide = {100, 0, 0, 10, 0, 0}, done_104 = {104, 0, 0, 10, 0, 0};
-  const sched_task_t w = {100, true}, x = {104, false};
+  const sched_cell_t done_wide = {100, 0, 0, 10, 0, 0, 0}, done_104 = {104, 0, 0, 10, 0, 0, 0};
+  const sched_task_t w = {100, true, 0}, x = {104, false, 0};
   sched_feedback(&S, 2, &w, 1, &done_wide, 1);
   CU_ASSERT(sched_busy(&S));
   S.work[104] = 0; /* (as if its figure had come from elsewhere) */
@@ -927,12 +927,12 @@ static void test_move_worth(void)
   S.work[0]++;
   CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 0, 4, t), 1); /* enough */
   CU_ASSERT(t[0].cell == 0 && S.holder[0] == 0 && S.holder[1] == 0 && S.holder[2] == 1);
-  const sched_cell_t done0 = {0, 1, 0, 1000, 0, 0};
+  const sched_cell_t done0 = {0, 1, 0, 1000, 0, 0, 0};
   sched_feedback(&S, 0, t, 1, &done0, 1); /* one bad element left, rank 0 holds the block now */
   S.work[511] = 1;                        /* one at the far corner, which rank 1 holds */
   CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 0, 4, t), 1); /* its own first, fetching nothing */
   CU_ASSERT(t[0].cell == 0);
-  sched_feedback(&S, 0, t, 1, &(sched_cell_t){0, 0, 0, 1000, 0, 0}, 1);
+  sched_feedback(&S, 0, t, 1, &(sched_cell_t){0, 0, 0, 1000, 0, 0, 0}, 1);
   CU_ASSERT_EQUAL(sched_pick(&S, 0, 4, t), 0); /* cell 511's: not worth it while rank 1 works */
   S.inflight[1] = 0;
   S.waiting[1] = true; /* rank 1 waits and nothing is in flight: rank 0 fetches, or nobody would */
@@ -972,7 +972,7 @@ static void test_pick_held(void)
   CU_ASSERT(t[0].cell == inside && !t[0].wide);
   CU_ASSERT(sched_in_flight(&S));
   CU_ASSERT_EQUAL(sched_pick_held(&S, 0, 4, t), 0); /* the border task would fetch (and its block is locked) */
-  sched_task_t done = {inside, false};
+  sched_task_t done = {inside, false, 0};
   sched_feedback(&S, 0, &done, 1, NULL, 0);
   S.work[inside] = 0;
   CU_ASSERT(!sched_in_flight(&S));
@@ -980,6 +980,45 @@ static void test_pick_held(void)
   CU_ASSERT_EQUAL(sched_pick_held(&S, 1, 4, t), 0);
   CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 0, 4, t), 1); /* (a stall: it may fetch) */
   CU_ASSERT(t[0].cell == border);
+  sched_free(&S);
+}
+
+/* A task that skips sides of its cell: its fetch block is its block without the layers
+ * beyond them; it fetches and takes only that, locks its whole block, and is priced by what it
+ * fetches (a border cell whose elements lie away from the border runs without moving data). */
+static void test_skip_sides(void)
+{
+  sched_t S;
+  sched_task_t t[4];
+  uint32_t cells[125];
+  two_ranks_cube(&S, 1000);
+  const uint32_t mid = 3 + 8 * (3 + 8 * 3); /* (3, 3, 3) */
+  const unsigned no_x_hi = 1u << 1, only_x_hi = (1u << 6) - 1 - no_x_hi;
+  CU_ASSERT_EQUAL(sched_fetch_block(&S, (sched_task_t){mid, false, 0}, cells), 27);
+  CU_ASSERT_EQUAL(sched_fetch_block(&S, (sched_task_t){mid, false, no_x_hi}, cells), 18);
+  CU_ASSERT_EQUAL_FATAL(sched_fetch_block(&S, (sched_task_t){mid, false, only_x_hi}, cells), 2);
+  CU_ASSERT(cells[0] == mid && cells[1] == mid + 1);
+  CU_ASSERT_EQUAL(sched_fetch_block(&S, (sched_task_t){mid, false, (1u << 6) - 1}, cells), 1);
+  CU_ASSERT_EQUAL(sched_fetch_block(&S, (sched_task_t){mid, true, no_x_hi}, cells), 125); /* (wide: whole) */
+  CU_ASSERT_EQUAL(sched_fetch_block(&S, (sched_task_t){0, false, no_x_hi}, cells), 4); /* (a corner, clipped) */
+  for (uint32_t c = 0; c < S.ncells; c++) S.holder[c] = c % 8 < 4 ? 0 : 1; /* (x < 4: rank 0) */
+  S.inflight[1] = 1; /* rank 1 works: no stall */
+  S.work[mid] = 1; /* one element: not worth the 9 cells across x = 4 */
+  CU_ASSERT_EQUAL(sched_pick(&S, 0, 4, t), 0);
+  S.skip[mid] = (uint8_t)no_x_hi; /* ... which it does not need */
+  CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 0, 4, t), 1);
+  CU_ASSERT(t[0].cell == mid && t[0].skip == no_x_hi && !t[0].wide);
+  CU_ASSERT(S.lock[mid + 1] == 1 && S.holder[mid + 1] == 1); /* locked, not taken */
+  sched_feedback(&S, 0, t, 1, &(sched_cell_t){mid, 0, 0, 1000, 0, 0, 0}, 1);
+  CU_ASSERT(S.lock[mid + 1] == 0 && S.skip[mid] == 0);
+  const uint32_t other = mid + 1; /* (4, 3, 3): rank 1's, its block reaches rank 0's x = 3 */
+  S.work[other] = 100; /* (worth one cell's tets) */
+  S.skip[other] = (uint8_t)(only_x_hi & ~1u & ~2u); /* (it needs both x sides: 3, rank 0's, and 5) */
+  S.inflight[1] = 0;
+  S.inflight[0] = 1;
+  CU_ASSERT_EQUAL_FATAL(sched_pick(&S, 1, 4, t), 1);
+  CU_ASSERT(t[0].cell == other && S.holder[other - 1] == 1 && S.holder[other - 1 + 8] == 0);
+  CU_ASSERT(S.lock[other - 1 + 8] == 1 && S.lock[other - 2] == 0);
   sched_free(&S);
 }
 
@@ -1004,7 +1043,7 @@ static void test_pick_narrow(void)
   CU_ASSERT(memcmp(before, S.holder, sizeof before) == 0);
   CU_ASSERT(S.lock[other] == 1 && S.lock[next] == 1 && S.inflight[0] == 2);
   CU_ASSERT_EQUAL(sched_pick_narrow(&S, 1, 8, t), 0); /* (other's block is locked) */
-  sched_feedback(&S, 0, (sched_task_t[]){{border, false}, {far, false}}, 2, NULL, 0);
+  sched_feedback(&S, 0, (sched_task_t[]){{border, false, 0}, {far, false, 0}}, 2, NULL, 0);
   S.work[border] = S.work[far] = 0;
   CU_ASSERT_EQUAL_FATAL(sched_pick_narrow(&S, 1, 8, t), 1);
   CU_ASSERT(t[0].cell == other);
@@ -1020,21 +1059,21 @@ static void test_best_rank_ties(void)
   sched_t S;
   CU_ASSERT_FATAL(sched_init(&S, n, 4) == I2M_OK);
   for (uint32_t c = 0; c < 27; c++) S.holder[c] = (int32_t)(c % 2 ? 3 : 1); /* 13 cells to 3, 14 to 1 */
-  CU_ASSERT_EQUAL(sched_best_rank(&S, (sched_task_t){13, false}), 1);
+  CU_ASSERT_EQUAL(sched_best_rank(&S, (sched_task_t){13, false, 0}), 1);
   S.tets[1] = 5; /* rank 3 now holds 13 + 5 */
-  CU_ASSERT_EQUAL(sched_best_rank(&S, (sched_task_t){13, false}), 3);
+  CU_ASSERT_EQUAL(sched_best_rank(&S, (sched_task_t){13, false, 0}), 3);
   for (uint32_t c = 0; c < 27; c++) S.holder[c] = 2, S.tets[c] = 0;
   S.holder[0] = 0;
   S.holder[1] = 1;
   S.holder[2] = 3;
-  CU_ASSERT_EQUAL(sched_best_rank(&S, (sched_task_t){0, false}), 2); /* 5 of cell 0's 8 cells */
+  CU_ASSERT_EQUAL(sched_best_rank(&S, (sched_task_t){0, false, 0}), 2); /* 5 of cell 0's 8 cells */
   for (uint32_t c = 0; c < 27; c++) S.holder[c] = (int32_t)(c % 4);
   S.tets[0] = 1; /* cell 0's block: cells 0,1,3,4,9,10,12,13: ranks 0,1,3,0,1,2,0,1 -> 0 has 3 + 1 */
-  CU_ASSERT_EQUAL(sched_best_rank(&S, (sched_task_t){0, false}), 0);
+  CU_ASSERT_EQUAL(sched_best_rank(&S, (sched_task_t){0, false, 0}), 0);
   S.tets[0] = 0; /* 0 and 1 hold three each: the lower */
-  CU_ASSERT_EQUAL(sched_best_rank(&S, (sched_task_t){0, false}), 0);
+  CU_ASSERT_EQUAL(sched_best_rank(&S, (sched_task_t){0, false, 0}), 0);
   S.tets[1] = 1;
-  CU_ASSERT_EQUAL(sched_best_rank(&S, (sched_task_t){0, false}), 1);
+  CU_ASSERT_EQUAL(sched_best_rank(&S, (sched_task_t){0, false, 0}), 1);
   sched_free(&S);
 }
 
@@ -1169,6 +1208,7 @@ static const test_case_t tests[] = {
     {"fetching only for work worth the tets, or on a stall, by hand", test_move_worth},
     {"sched_pick_held: no fetch, even on a stall", test_pick_held},
     {"sched_pick_narrow: the cells a rank holds, nothing moves", test_pick_narrow},
+    {"a task that skips sides fetches and takes only its fetch block, locks all", test_skip_sides},
     {"sched_best_rank and its ties", test_best_rank_ties},
     {"sched_balance by hand", test_balance_by_hand},
     {"sched_balance on random drifts, 2-5 ranks: legal moves, the bound or no move left", test_balance_random},

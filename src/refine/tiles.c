@@ -46,6 +46,17 @@ static void tile_coords(const tiling_t *g, uint32_t id, int32_t c[3])
   c[2] = (int32_t)(id / (uint32_t)g->cells.n[0] / (uint32_t)g->cells.n[1]);
 }
 
+/* The cell of tile id: lo, hi (world). */
+static void tile_box(const tiling_t *g, uint32_t id, double box[6])
+{
+  int32_t c[3];
+  tile_coords(g, id, c);
+  for (int a = 0; a < 3; a++) {
+    box[a] = g->cells.origin[a] + c[a] * g->side[a];
+    box[3 + a] = box[a] + g->side[a];
+  }
+}
+
 /* The tile of a tet: the one that holds its centroid. */
 uint32_t tiles_tile_of_point(const i2m_refine_t *r, const double x[3])
 {
@@ -175,7 +186,13 @@ i2m_err_t tiles_route(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t me
                         (handoff_t){to, w->tile_id, w->tile->seq++, level, t, meta, {0, 0}, HAND_QUEUE});
 }
 
-static void tile_box(const tiling_t *g, uint32_t id, double box[6]);
+/* The sides of a cell (bit 2a: its lower face along axis a, 2a + 1: its upper one; see
+ * i2m_refine_tile_skip): all six, or those an element needs. */
+#define SIDES_ALL ((1u << 6) - 1)
+/* How far an element reaches, in radii of its tet's circumball beyond the margin: for a task
+ * that may go without some sides, and once such a task could not do it. */
+#define SKIP_BALL_GROW 1.5
+#define NEED_BALL_GROW 3.0
 
 /* The sides of box that tet t's circumball grown by `grow` times its radius and `margin` meets
  * (all six for a flat tet). */
@@ -183,7 +200,7 @@ static unsigned ball_sides(const i2m_refine_t *r, uint32_t t, const double box[6
 {
   tet_geom_t tg;
   tet_centre(r, t, &tg);
-  if (!isfinite(tg.r2)) return (1u << 6) - 1;
+  if (!isfinite(tg.r2)) return SIDES_ALL;
   const double reach = grow * sqrt(tg.r2) + margin;
   unsigned sides = 0;
   for (int a = 0; a < 3; a++) {
@@ -194,15 +211,15 @@ static unsigned ball_sides(const i2m_refine_t *r, uint32_t t, const double box[6
 }
 
 /* An element that a task going without some sides could not do: the sides it needs (its
- * ball grown twice as far as skip_sides grows it), for the next task; if it seems to need none
- * of those skipped, the cell's next task takes the whole block. */
+ * ball grown further than skip_sides grows it, and twice the margin), for the next task; if it
+ * seems to need none of those skipped, the cell's next task takes the whole block. */
 static void note_skipped_need(i2m_refine_worker_t *w, int level, uint32_t t)
 {
   const i2m_refine_t *r = w->r;
   tile_t *tl = w->tile;
   double box[6];
   tile_box(r->tiling, w->tile_id, box);
-  const unsigned sides = level >= 0 ? ball_sides(r, t, box, 3.0, 2 * I2M_SKIP_MARGIN * r->delta) : 0;
+  const unsigned sides = level >= 0 ? ball_sides(r, t, box, NEED_BALL_GROW, 2 * I2M_SKIP_MARGIN * r->delta) : 0;
   if (sides & tl->skip) tl->skip_need |= (uint8_t)sides;
   else tl->whole_next = true;
 }
@@ -244,17 +261,6 @@ static void swap_tile(i2m_refine_worker_t *w, tile_t *tl, bool wide)
 {
   if (wide) swap_lists(w, tl->wq, &tl->wpend, &tl->nwpend, &tl->cap_wpend, &tl->slots);
   else swap_lists(w, tl->q, &tl->pend, &tl->npend, &tl->cap_pend, &tl->slots);
-}
-
-/* The cell of tile id: lo, hi (world). */
-static void tile_box(const tiling_t *g, uint32_t id, double box[6])
-{
-  int32_t c[3];
-  tile_coords(g, id, c);
-  for (int a = 0; a < 3; a++) {
-    box[a] = g->cells.origin[a] + c[a] * g->side[a];
-    box[3 + a] = box[a] + g->side[a];
-  }
 }
 
 /* The zone of a task of tile id that goes without the sides in skip: its normal zone, but
@@ -948,9 +954,9 @@ static unsigned skip_sides(const i2m_refine_t *r, uint32_t id)
   double box[6];
   tile_box(g, id, box);
   unsigned need = tl->skip_need;
-  for (int l = 0; l < NLEVELS && need != (1u << 6) - 1; l++)
-    for (size_t i = 0; i < tl->q[l].n && need != (1u << 6) - 1; i++) need |= ball_sides(r, tl->q[l].e[i][0], box, 1.5, margin);
-  return ~need & ((1u << 6) - 1);
+  for (int l = 0; l < NLEVELS && need != SIDES_ALL; l++)
+    for (size_t i = 0; i < tl->q[l].n && need != SIDES_ALL; i++) need |= ball_sides(r, tl->q[l].e[i][0], box, SKIP_BALL_GROW, margin);
+  return ~need & SIDES_ALL;
 }
 
 void i2m_refine_tile_figures(i2m_refine_t *r, uint32_t id, int64_t fig[I2M_TILE_NFIG])

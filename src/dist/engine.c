@@ -239,6 +239,12 @@ static void cell_figures(engine_t *E, uint32_t c, bool count, int64_t fig[I2M_TI
 }
 
 /* A task in a message: its cell, then its wide flag and the sides it skips (wide + 2 skip). */
+static void put_task(int64_t *m, sched_task_t t)
+{
+  m[0] = t.cell;
+  m[1] = t.wide + 2 * (int64_t)t.skip;
+}
+
 static sched_task_t task_of(const int64_t *m)
 {
   return (sched_task_t){(uint32_t)m[0], (m[1] & 1) != 0, (uint8_t)(m[1] >> 1)};
@@ -385,10 +391,7 @@ static void finish_batch(engine_t *E)
   check(E, i2m_malloc(2 + 2 * (size_t)E->nbatch + (1 + I2M_TILE_NFIG) * (size_t)nc, sizeof *m, &m));
   size_t at = 0;
   m[at++] = E->nbatch;
-  for (uint32_t k = 0; k < E->nbatch; k++) {
-    m[at++] = E->batch[k].cell;
-    m[at++] = E->batch[k].wide + 2 * (int64_t)E->batch[k].skip;
-  }
+  for (uint32_t k = 0; k < E->nbatch; k++, at += 2) put_task(m + at, E->batch[k]);
   m[at++] = nc;
   for (uint32_t i = 0; i < nc; i++) {
     m[at++] = cells[i];
@@ -423,10 +426,7 @@ static void send_assign(engine_t *E, int q, const sched_task_t *tasks, uint32_t 
   check(E, i2m_malloc(2 + 2 * (size_t)n + 2 * (size_t)ncells, sizeof *m, &m));
   size_t at = 0;
   m[at++] = n;
-  for (uint32_t k = 0; k < n; k++) {
-    m[at++] = tasks[k].cell;
-    m[at++] = tasks[k].wide + 2 * (int64_t)tasks[k].skip;
-  }
+  for (uint32_t k = 0; k < n; k++, at += 2) put_task(m + at, tasks[k]);
   m[at++] = ncells;
   for (uint32_t i = 0; i < ncells; i++) {
     m[at++] = cells[i];

@@ -34,11 +34,6 @@
  *  (about 9 bad elements, 100 k tets); 30 left one rank idle for a third of the run. */
 #define SCHED_MOVE_WORTH 60.0
 
-/** The sides of a cell (bit 2a: towards lower coordinates along axis a, bit 2a + 1: higher)
- *  whose neighbours a task of it may go without (sched_task_t.skip): all six, the cell alone;
- *  none, the whole block. */
-#define SCHED_SIDES 6
-
 /** A task: a cell (wide: its wide task, a block of 5^3 cells).  A normal task whose elements
  *  all lie away from some sides of its cell (skip) runs on the part of its block on the
  *  others (its fetch block): it locks the whole block, but the cells beyond the skipped sides
@@ -46,7 +41,7 @@
 typedef struct {
   uint32_t cell;
   bool wide;
-  uint8_t skip; /* sides skipped (0: the whole block) */
+  uint8_t skip; /* sides skipped (bit 2a: the lower face along axis a, 2a + 1: the upper; 0: the whole block) */
 } sched_task_t;
 
 /** What a rank tells the scheduler about one cell after a task. */

@@ -189,8 +189,7 @@ typedef struct {
   bool held;          /* dist: this process holds the tile's tets */
   bool dirty;         /* its lists got elements in an order of no one's (tiles_canonical) */
   uint8_t skip;       /* dist: the sides of the cell its next task goes without (i2m_refine_tile_skip) */
-  uint8_t skip_need;  /* dist: sides that elements a task went without could not do need */
-  bool whole_next;    /* dist: such an element that needs none of the sides skipped (its next task: the whole block) */
+  uint8_t skip_need;  /* dist: sides that elements a task going without some could not do need (all: its next task is whole) */
   i2m_bridge_point_t *pts, *wpts; /* dist: bridge points for its task, its wide task (inserted first) */
   uint32_t npts, cap_pts, nwpts, cap_wpts;
 } tile_t;

@@ -46,15 +46,20 @@ static void tile_coords(const tiling_t *g, uint32_t id, int32_t c[3])
   c[2] = (int32_t)(id / (uint32_t)g->cells.n[0] / (uint32_t)g->cells.n[1]);
 }
 
-/* The cell of tile id: lo, hi (world). */
+/* The cell at coordinates c: lo, hi (world). */
+static void cell_box(const tiling_t *g, const int32_t c[3], double box[6])
+{
+  for (int a = 0; a < 3; a++) {
+    box[a] = g->cells.origin[a] + c[a] * g->side[a];
+    box[3 + a] = g->cells.origin[a] + (c[a] + 1) * g->side[a];
+  }
+}
+
 static void tile_box(const tiling_t *g, uint32_t id, double box[6])
 {
   int32_t c[3];
   tile_coords(g, id, c);
-  for (int a = 0; a < 3; a++) {
-    box[a] = g->cells.origin[a] + c[a] * g->side[a];
-    box[3 + a] = box[a] + g->side[a];
-  }
+  cell_box(g, c, box);
 }
 
 /* The tile of a tet: the one that holds its centroid. */
@@ -212,7 +217,8 @@ static unsigned ball_sides(const i2m_refine_t *r, uint32_t t, const double box[6
 
 /* An element that a task going without some sides could not do: the sides it needs (its
  * ball grown further than skip_sides grows it, and twice the margin), for the next task; if it
- * seems to need none of those skipped, the cell's next task takes the whole block. */
+ * seems to need none of those skipped, all of them (the cell's next task takes the whole
+ * block). */
 static void note_skipped_need(i2m_refine_worker_t *w, int level, uint32_t t)
 {
   const i2m_refine_t *r = w->r;
@@ -220,15 +226,14 @@ static void note_skipped_need(i2m_refine_worker_t *w, int level, uint32_t t)
   double box[6];
   tile_box(r->tiling, w->tile_id, box);
   const unsigned sides = level >= 0 ? ball_sides(r, t, box, NEED_BALL_GROW, 2 * I2M_SKIP_MARGIN * r->delta) : 0;
-  if (sides & tl->skip) tl->skip_need |= (uint8_t)sides;
-  else tl->whole_next = true;
+  tl->skip_need |= (uint8_t)(sides & tl->skip ? sides : SIDES_ALL);
 }
 
 i2m_err_t tiles_defer(i2m_refine_worker_t *w, int level, uint32_t t, uint32_t meta, pending_t pv)
 {
   const tiling_t *g = w->r->tiling;
   const uint32_t to = g->octree ? w->tile_id : TILE_NONE;
-  const bool part = g->octree && !w->tile_wide && w->tile->skip; /* (a task with more sides will try) */
+  const bool part = !w->tile_wide && w->tile->skip; /* (a task with more sides will try) */
   if (part) note_skipped_need(w, level, t);
   const int32_t where = !g->octree || part ? HAND_QUEUE : w->tile_wide ? HAND_STUCK : HAND_WIDE;
   return handoff_append(&w->out, &w->nout, &w->cap_out, (handoff_t){to, w->tile_id, w->tile->seq++, level, t, meta, pv, where});
@@ -283,14 +288,11 @@ void tiles_bind(i2m_refine_worker_t *w, uint32_t id, bool wide)
   tile_t *tl = &g->tile[id];
   swap_tile(w, tl, wide);
   w->ctx.zone = wide ? tl->wzone : tl->zone;
-  if (g->octree && !wide && tl->skip) {
+  if (!wide && tl->skip) { /* (octree tiles only) */
     skip_zone(g, id, tl->skip, I2M_SKIP_MARGIN * w->r->delta, w->part_zone);
     w->ctx.zone = w->part_zone;
   }
-  if (!wide) { /* (this task's elements that it cannot do will say what they need) */
-    tl->whole_next = false;
-    tl->skip_need = 0;
-  }
+  if (!wide) tl->skip_need = 0; /* (this task's elements that it cannot do will say what they need) */
   w->ctx.block = !g->octree ? NULL : wide ? &tl->wblock : &tl->block;
   w->ctx.bounded = true;
   w->ctx.locking = false; /* (zones instead of locks) */
@@ -534,11 +536,12 @@ void i2m_refine_tiling_bound(i2m_refine_t *r)
 static void tile_reach(const tiling_t *g, const int32_t c[3], int radius, double grow, i2m_dt_block_t *b, double zone[6])
 {
   b->cells = g->cells;
+  cell_box(g, c, zone);
   for (int a = 0; a < 3; a++) {
     b->lo[a] = c[a] - radius < 0 ? 0 : c[a] - radius;
     b->hi[a] = c[a] + radius >= g->cells.n[a] ? g->cells.n[a] - 1 : c[a] + radius;
-    zone[a] = g->cells.origin[a] + c[a] * g->side[a] - grow * g->margin[a];
-    zone[3 + a] = g->cells.origin[a] + (c[a] + 1) * g->side[a] + grow * g->margin[a];
+    zone[a] -= grow * g->margin[a];
+    zone[3 + a] += grow * g->margin[a];
   }
 }
 
@@ -948,7 +951,7 @@ static unsigned skip_sides(const i2m_refine_t *r, uint32_t id)
   const tile_t *tl = &g->tile[id];
   const double margin = I2M_SKIP_MARGIN * r->delta;
   const size_t work = tile_work(tl);
-  if (!r->async_tasks || !g->octree || !work || work > SKIP_MAX_WORK || tl->whole_next || tl->npend || tl->npts) return 0;
+  if (!r->async_tasks || !g->octree || !work || work > SKIP_MAX_WORK || tl->npend || tl->npts) return 0;
   for (int a = 0; a < 3; a++)
     if (g->side[a] < 4 * margin) return 0;
   double box[6];

@@ -912,6 +912,13 @@ static void two_ranks_cube(sched_t *S, int64_t tets)
   for (uint32_t c = 0; c < S->ncells; c++) S->tets[c] = tets;
 }
 
+/* As two_ranks_cube, the cells with x < 4 rank 0's, the others rank 1's. */
+static void two_ranks_halves(sched_t *S, int64_t tets)
+{
+  two_ranks_cube(S, tets);
+  for (uint32_t c = 0; c < S->ncells; c++) S->holder[c] = c % 8 < 4 ? 0 : 1;
+}
+
 /* A task fetches data only for work worth it (SCHED_MOVE_WORTH), unless the run would stall. */
 static void test_move_worth(void)
 {
@@ -961,8 +968,7 @@ static void test_pick_held(void)
 {
   sched_t S;
   sched_task_t t[4];
-  two_ranks_cube(&S, 100);
-  for (uint32_t c = 0; c < S.ncells; c++) S.holder[c] = c % 8 < 4 ? 0 : 1; /* (x < 4: rank 0) */
+  two_ranks_halves(&S, 100);
   const uint32_t inside = 1 + 8 * (3 + 8 * 3), border = 3 + 8 * (3 + 8 * 3); /* (x = 1 and x = 3) */
   S.work[border] = 50; /* the busiest, but its block reaches x = 4 */
   S.work[inside] = 1;
@@ -991,7 +997,7 @@ static void test_skip_sides(void)
   sched_t S;
   sched_task_t t[4];
   uint32_t cells[125];
-  two_ranks_cube(&S, 1000);
+  two_ranks_halves(&S, 1000);
   const uint32_t mid = 3 + 8 * (3 + 8 * 3); /* (3, 3, 3) */
   const unsigned no_x_hi = 1u << 1, only_x_hi = (1u << 6) - 1 - no_x_hi;
   CU_ASSERT_EQUAL(sched_fetch_block(&S, (sched_task_t){mid, false, 0}, cells), 27);
@@ -1001,7 +1007,6 @@ static void test_skip_sides(void)
   CU_ASSERT_EQUAL(sched_fetch_block(&S, (sched_task_t){mid, false, (1u << 6) - 1}, cells), 1);
   CU_ASSERT_EQUAL(sched_fetch_block(&S, (sched_task_t){mid, true, no_x_hi}, cells), 125); /* (wide: whole) */
   CU_ASSERT_EQUAL(sched_fetch_block(&S, (sched_task_t){0, false, no_x_hi}, cells), 4); /* (a corner, clipped) */
-  for (uint32_t c = 0; c < S.ncells; c++) S.holder[c] = c % 8 < 4 ? 0 : 1; /* (x < 4: rank 0) */
   S.inflight[1] = 1; /* rank 1 works: no stall */
   S.work[mid] = 1; /* one element: not worth the 9 cells across x = 4 */
   CU_ASSERT_EQUAL(sched_pick(&S, 0, 4, t), 0);
@@ -1028,8 +1033,7 @@ static void test_pick_narrow(void)
 {
   sched_t S;
   sched_task_t t[8];
-  two_ranks_cube(&S, 100);
-  for (uint32_t c = 0; c < S.ncells; c++) S.holder[c] = c % 8 < 4 ? 0 : 1; /* (x < 4: rank 0) */
+  two_ranks_halves(&S, 100);
   int32_t before[512];
   memcpy(before, S.holder, sizeof before);
   const uint32_t border = 3 + 8 * (3 + 8 * 3), next = 2 + 8 * (3 + 8 * 3), far = 0 + 8 * (0 + 8 * 0);

@@ -3,8 +3,10 @@
 # (cores, ranks, threads, elements, time, elements/s, speedup against 1x1, efficiency) and,
 # from the best run of each MPI configuration, its Fig. 7 breakdown averaged over the ranks
 # (pre-processing, meshing, communication, idle, as fractions of each rank's time) and the
-# bytes moved per output tet, and where the communication time goes (waiting for data, packing,
-# joining, dropping, merging).  Writes bench/results/bench_mpi_<date>.txt and .json.
+# bytes moved per output tet, where the communication time goes (waiting for data, packing,
+# joining, dropping, merging), and, from its --trace, how long tasks ran on every rank, on some
+# only (the others waiting: the tail) and on none.  Writes bench/results/bench_mpi_<date>.txt
+# and .json.
 #
 #   bench/bench_mpi.sh [-i IMAGE] [-o "I2M OPTIONS"] [-r REPEATS] [-c "CONFIGS"]
 #
@@ -35,7 +37,7 @@ while getopts i:o:r:c:h opt; do
     o) OPTS=$OPTARG ;;
     r) REPEATS=$OPTARG ;;
     c) CONFIGS=$OPTARG ;;
-    *) sed -n '8,15p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2 ;;
+    *) sed -n '10,17p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2 ;;
   esac
 done
 export I2M="${I2M:-$(pwd)/bin/i2m}"
@@ -67,12 +69,12 @@ run_one() {
   rt=${c#mpi}
   r=${rt%x*}
   t=${rt#*x}
-  rm -f "$TMP"/out*
+  rm -f "$TMP"/out* "$TMP/run.trace"
   # shellcheck disable=SC2086
   if [ "$c" = "$rt" ] && [ "$r" = 1 ]; then
     set -- env OMP_NUM_THREADS="$t" "$I2M" "$IMAGE" -o "$TMP/out.vtu" --threads "$t"
   else
-    set -- sh run/mpirun.sh -n "$r" -t "$t" "$IMAGE" "$TMP/out.pvtu" --threads "$t"
+    set -- sh run/mpirun.sh -n "$r" -t "$t" "$IMAGE" "$TMP/out.pvtu" --threads "$t" --trace "$TMP/run.trace"
   fi
   t0=$(now)
   # shellcheck disable=SC2086
@@ -92,11 +94,41 @@ while [ "$round" -le "$REPEATS" ]; do
   for c in $CONFIGS; do
     run_one "$c"
     best="$TMP/best_$c.json"
-    "$PY" - "$TMP/run.json" "$TMP/run.wall" "$best" "$c" "$round" <<'PY'
+    "$PY" - "$TMP/run.json" "$TMP/run.wall" "$best" "$c" "$round" "$TMP/run.trace" <<'PY'
 import json, shutil, sys
-run, wall, best, cfg, rnd = sys.argv[1:]
+run, wall, best, cfg, rnd, trace = sys.argv[1:]
 r = json.load(open(run))
 r["bench_wall_seconds"] = float(open(wall).read())
+
+
+def overlap(path, ranks):
+    """Seconds of the tasks' span (first start to last end, the trace's clock) during which every
+    rank, only some, or none ran a batch of tasks (a rank's tasks of one batch share their times)."""
+    events = []
+    seen = set()
+    for line in open(path):
+        if line.startswith("#") or not line.strip():
+            continue
+        f = line.split()
+        key = (int(f[0]), f[3], f[4])
+        if key not in seen:
+            seen.add(key)
+            events += [(float(f[3]), 1), (float(f[4]), -1)]
+    events.sort()
+    out = {"all": 0.0, "some": 0.0, "none": 0.0}
+    running, last = 0, None
+    for t, d in events:
+        if last is not None and t > last:
+            out["all" if running >= ranks else "some" if running > 0 else "none"] += t - last
+        running, last = running + d, t
+    out["span"] = sum(out.values())
+    return out
+
+
+try:
+    r["bench_overlap"] = overlap(trace, r["dist"]["ranks"])
+except (OSError, KeyError, ValueError, IndexError):
+    pass
 t = r["time_seconds"]["total"]
 try:
     b = json.load(open(best))
@@ -150,6 +182,8 @@ for c in configs:
         row["comm_parts_seconds"] = cp
         row["bytes_per_tet"] = d["bytes"] / row["elements"] if row["elements"] else 0.0
         row["depth"], row["tasks"], row["submeshes_moved"] = d["depth"], d["tasks"], d["submeshes_moved"]
+        if "bench_overlap" in r and ranks > 1:
+            row["task_overlap_seconds"] = r["bench_overlap"]
     rows.append(row)
 ref = next((w for w in rows if w["config"] == "1x1"), rows[0])
 for w in rows:
@@ -185,6 +219,13 @@ for w in rows:
         c = w["comm_parts_seconds"]
         lines.append("  %-7s %18.2f %9.2f %8.2f %9.2f %8.2f" % (w["config"], c["wait_data"], c["pack"], c["unpack"],
                                                             c["drop"], c["merge"]))
+lines += ["", "Tasks running (from the best run's --trace, seconds of the tasks' span, the component rule's",
+          "pauses included in 'none'): on every rank, on some only (a rank waits: the tail), on none:",
+          "  config   every rank    some only      none      span", "  " + "-" * 52]
+for w in rows:
+    if "task_overlap_seconds" in w:
+        o = w["task_overlap_seconds"]
+        lines.append("  %-7s %11.2f %12.2f %9.2f %9.2f" % (w["config"], o["all"], o["some"], o["none"], o["span"]))
 text = "\n".join(lines) + "\n"
 print(text, end="")
 open(base + ".txt", "w").write(text)

@@ -211,21 +211,25 @@ for w in rows:
             w["depth"], w["tasks"]))
     else:
         lines.append("  %-7s   (plain process: no MPI breakdown)" % w["config"])
-lines += ["", "Communication work of the best run, seconds per rank (mean over ranks; packing also while",
-          "the rank's threads refine):",
-          "  config   waiting for data   packing  joining  dropping  merging", "  " + "-" * 64]
-for w in rows:
-    if "comm_parts_seconds" in w:
-        c = w["comm_parts_seconds"]
-        lines.append("  %-7s %18.2f %9.2f %8.2f %9.2f %8.2f" % (w["config"], c["wait_data"], c["pack"], c["unpack"],
-                                                            c["drop"], c["merge"]))
-lines += ["", "Tasks running (from the best run's --trace, seconds of the tasks' span, the component rule's",
-          "pauses included in 'none'): on every rank, on some only (a rank waits: the tail), on none:",
-          "  config   every rank    some only      none      span", "  " + "-" * 52]
-for w in rows:
-    if "task_overlap_seconds" in w:
-        o = w["task_overlap_seconds"]
-        lines.append("  %-7s %11.2f %12.2f %9.2f %9.2f" % (w["config"], o["all"], o["some"], o["none"], o["span"]))
+
+
+def seconds_table(title, header, key, fields, fmt):
+    """A table of the rows that have the figures `key`, one line each: config, then fields."""
+    out = [""] + title + [header, "  " + "-" * (len(header) - 2)]
+    for w in rows:
+        if key in w:
+            out.append(("  %-7s " + fmt) % ((w["config"],) + tuple(w[key][f] for f in fields)))
+    return out
+
+
+lines += seconds_table(["Communication work of the best run, seconds per rank (mean over ranks; packing also while",
+                        "the rank's threads refine):"],
+                       "  config   waiting for data   packing  joining  dropping  merging", "comm_parts_seconds",
+                       ("wait_data", "pack", "unpack", "drop", "merge"), "%18.2f %9.2f %8.2f %9.2f %8.2f")
+lines += seconds_table(["Tasks running (from the best run's --trace, seconds of the tasks' span, the component rule's",
+                        "pauses included in 'none'): on every rank, on some only (a rank waits: the tail), on none:"],
+                       "  config   every rank    some only      none      span", "task_overlap_seconds",
+                       ("all", "some", "none", "span"), "%11.2f %12.2f %9.2f %9.2f")
 text = "\n".join(lines) + "\n"
 print(text, end="")
 open(base + ".txt", "w").write(text)

@@ -166,108 +166,208 @@ static i2m_err_t list_parts(const i2m_refine_t *r, pieces_t *P)
   return I2M_OK;
 }
 
-/* A (part, component) entry of the comp table, through a small open hash. */
+/* A small open hash from nonzero 64-bit keys to the indices of entries in the order they came. */
 typedef struct {
-  uint64_t *key; /* part << 32 | (comp + 1), 0: empty */
-  uint32_t *at;  /* its index in P->comp */
-  size_t cap;
-} comp_index_t;
+  uint64_t *key; /* 0: empty */
+  uint32_t *at;
+  size_t cap, n;
+} key_index_t;
 
-static i2m_err_t comp_entry(pieces_t *P, comp_index_t *H, uint32_t part, int64_t comp, size_t *cap_comp, uint32_t *out)
+static size_t key_slot(const key_index_t *H, uint64_t k)
 {
-  if (2 * (P->ncomps + 1) > H->cap) { /* rehash */
-    const size_t cap = H->cap ? 2 * H->cap : 4096;
-    uint64_t *key = NULL;
-    uint32_t *at = NULL;
-    I2M_CALL(i2m_calloc(cap, sizeof *key, &key));
-    I2M_CALL(i2m_malloc(cap, sizeof *at, &at));
-    for (size_t i = 0; i < H->cap; i++) {
-      if (!H->key[i]) continue;
-      size_t h = (size_t)((H->key[i] * 0x9E3779B97F4A7C15ull) >> 17) & (cap - 1);
-      while (key[h]) h = (h + 1) & (cap - 1);
-      key[h] = H->key[i];
-      at[h] = H->at[i];
-    }
-    i2m_free(&H->key);
-    i2m_free(&H->at);
-    H->key = key;
-    H->at = at;
-    H->cap = cap;
-  }
-  const uint64_t k = (uint64_t)part << 32 | (uint64_t)(comp + 1);
   size_t h = (size_t)((k * 0x9E3779B97F4A7C15ull) >> 17) & (H->cap - 1);
   while (H->key[h] && H->key[h] != k) h = (h + 1) & (H->cap - 1);
-  if (!H->key[h]) {
-    if (P->ncomps == *cap_comp) {
-      *cap_comp = 2 * *cap_comp + 256;
-      I2M_CALL(i2m_realloc(*cap_comp, sizeof *P->comp, &P->comp));
+  return h;
+}
+
+/* Key k's index into *at; a new key gets the next one (*added). */
+static i2m_err_t key_index(key_index_t *H, uint64_t k, uint32_t *at, bool *added)
+{
+  if (2 * (H->n + 1) > H->cap) { /* rehash */
+    key_index_t G = {NULL, NULL, H->cap ? 2 * H->cap : 64, H->n};
+    I2M_CALL(i2m_calloc(G.cap, sizeof *G.key, &G.key));
+    i2m_err_t err = i2m_malloc(G.cap, sizeof *G.at, &G.at);
+    if (err != I2M_OK) {
+      i2m_free(&G.key);
+      return err;
     }
-    i2m_part_comp_t *c = &P->comp[P->ncomps];
-    c->part = part;
-    c->comp = comp;
-    c->volume = 0;
-    c->seed = UINT32_MAX;
-    for (int i = 0; i < 4; i++) c->key[i] = INT64_MAX;
-    H->key[h] = k;
-    H->at[h] = (uint32_t)P->ncomps++;
+    for (size_t i = 0; i < H->cap; i++)
+      if (H->key[i]) {
+        const size_t h = key_slot(&G, H->key[i]);
+        G.key[h] = H->key[i];
+        G.at[h] = H->at[i];
+      }
+    i2m_free(&H->key);
+    i2m_free(&H->at);
+    *H = G;
   }
-  *out = H->at[h];
+  const size_t h = key_slot(H, k);
+  *added = !H->key[h];
+  if (*added) {
+    H->key[h] = k;
+    H->at[h] = (uint32_t)H->n++;
+  }
+  *at = H->at[h];
   return I2M_OK;
 }
 
-/* Every part's tets, volume, least tet, and volume per image component (with the least tet in
- * each, where the bridges' search starts); tet t's component into idx[t]. */
-static i2m_err_t describe_parts(const i2m_refine_t *r, pieces_t *P, i2m_progress_t *pg)
+static void key_index_free(key_index_t *H)
+{
+  i2m_free(&H->key);
+  i2m_free(&H->at);
+}
+
+/* ---- a part's figures, summed by chunks of slots in parallel ---- */
+
+/* Slots per chunk: the sums of a chunk are taken in slot order and the chunks' in chunk order,
+ * so the figures do not depend on the number of threads. */
+#define DESCRIBE_CHUNK 65536
+
+/* A chunk's sums for one part, or for one (part, image component) pair (comp: its root run
+ * + 1 as a 32-bit code, UINT32_MAX: beyond), each with its least tet. */
+typedef struct {
+  i2m_gidx_t key[4];
+  double volume;
+  int64_t ntets;
+  uint32_t part, comp, seed;
+} part_sum_t;
+
+typedef struct {
+  part_sum_t *part, *comp; /* in the order the chunk first met them */
+  uint32_t nparts, ncomps;
+  i2m_err_t err;
+} chunk_sums_t;
+
+static i2m_err_t sum_entry(key_index_t *H, uint64_t k, part_sum_t **v, uint32_t *n, size_t *cap, part_sum_t **out)
+{
+  uint32_t at;
+  bool added;
+  I2M_CALL(key_index(H, k, &at, &added));
+  if (added) {
+    if (*n == *cap) {
+      *cap = 2 * *cap + 16;
+      I2M_CALL(i2m_realloc(*cap, sizeof **v, v));
+    }
+    part_sum_t *e = &(*v)[(*n)++];
+    memset(e, 0, sizeof *e);
+    for (int i = 0; i < 4; i++) e->key[i] = INT64_MAX;
+    e->seed = UINT32_MAX;
+  }
+  *out = &(*v)[at];
+  return I2M_OK;
+}
+
+/* Tet t into sums e (its key k computed once, when it may be the least: low is its least id). */
+static void sum_tet(const i2m_dt_t *dt, uint32_t t, double v, i2m_gidx_t low, i2m_gidx_t k[4], part_sum_t *e)
+{
+  e->ntets++;
+  e->volume += v;
+  if (low > e->key[0]) return; /* a key begins with the least id: most tets lose there */
+  if (k[0] == INT64_MAX) pieces_tet_key(dt, t, k);
+  if (pieces_key_cmp(k, e->key) < 0) {
+    memcpy(e->key, k, 4 * sizeof *k);
+    e->seed = t;
+  }
+}
+
+/* Slots [t0, t1): each kept tet's component into idx[t], and the chunk's sums. */
+static void sum_chunk(const i2m_refine_t *r, pieces_t *P, uint32_t t0, uint32_t t1, chunk_sums_t *out)
 {
   const i2m_dt_t *dt = r->dt;
-  const uint32_t n = i2m_dt_ntets_slots(dt);
-  I2M_OMP(omp parallel for schedule(dynamic, 4096))
-  for (int64_t t = 0; t < (int64_t)n; t++) {
-    slot_done(pg, t);
-    if (!tet_kept(dt, (uint32_t)t)) continue;
-    const int64_t c = tet_component(r, (uint32_t)t);
-    atomic_store_explicit(&P->idx[t], c < 0 || c >= UINT32_MAX ? UINT32_MAX : (uint32_t)c, memory_order_relaxed);
-  }
-  comp_index_t H = {NULL, NULL, 0};
-  size_t cap_comp = 0;
+  key_index_t Hp = {NULL, NULL, 0, 0}, Hc = {NULL, NULL, 0, 0}; /* (the entries of each list) */
+  size_t cap_parts = 0, cap_comps = 0;
+  part_sum_t *ep = NULL, *ec = NULL;
+  uint32_t last_part = UINT32_MAX, last_comp = UINT32_MAX; /* (neighbouring slots: often one entry) */
   i2m_err_t err = I2M_OK;
-  uint32_t last_part = UINT32_MAX, last_comp = UINT32_MAX, e = 0; /* (neighbouring slots: often one entry) */
-  for (uint32_t t = 0; t < n && err == I2M_OK; t++) {
-    slot_done(pg, t);
+  for (uint32_t t = t0; t < t1 && err == I2M_OK; t++) {
     if (!tet_kept(dt, t)) continue;
+    const int64_t comp = tet_component(r, t);
+    const uint32_t c = comp < 0 || comp >= UINT32_MAX ? UINT32_MAX : (uint32_t)comp;
+    atomic_store_explicit(&P->idx[t], c, memory_order_relaxed);
     const uint32_t pi = atomic_load_explicit(&P->par[t], memory_order_relaxed);
-    i2m_part_t *p = &P->part[pi];
+    if (pi != last_part) err = sum_entry(&Hp, (uint64_t)pi + 1, &out->part, &out->nparts, &cap_parts, &ep);
+    if (err == I2M_OK && c != UINT32_MAX && (pi != last_part || c != last_comp))
+      err = sum_entry(&Hc, (uint64_t)(pi + 1) << 32 | c, &out->comp, &out->ncomps, &cap_comps, &ec);
+    if (err != I2M_OK) break;
+    last_part = pi;
+    last_comp = c;
+    ep->part = pi;
     const double v = fabs(pieces_tet_volume(dt, t));
     const uint32_t *tv = dt->tv + 4 * (size_t)t;
-    i2m_gidx_t low = i2m_dt_gid(dt, tv[0]); /* a key begins with the least id: most tets lose there */
+    i2m_gidx_t low = i2m_dt_gid(dt, tv[0]);
     for (int i = 1; i < 4; i++) low = i2m_dt_gid(dt, tv[i]) < low ? i2m_dt_gid(dt, tv[i]) : low;
     i2m_gidx_t k[4] = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
-    if (low <= p->key[0]) {
-      pieces_tet_key(dt, t, k);
-      key_min(p->key, k);
-    }
-    p->ntets++;
-    p->volume += v;
-    const uint32_t c = atomic_load_explicit(&P->idx[t], memory_order_relaxed);
+    sum_tet(dt, t, v, low, k, ep);
     if (c == UINT32_MAX) continue;
-    if (pi != last_part || c != last_comp) {
-      err = comp_entry(P, &H, pi, c, &cap_comp, &e);
-      if (err != I2M_OK) break;
-      last_part = pi;
-      last_comp = c;
+    ec->part = pi;
+    ec->comp = c;
+    sum_tet(dt, t, v, low, k, ec);
+  }
+  key_index_free(&Hp);
+  key_index_free(&Hc);
+  out->err = err;
+}
+
+/* Every part's tets, volume, least tet, and volume per image component (with the least tet in
+ * each, where the bridges' search starts); tet t's component into idx[t].  The comp table
+ * lists the pairs in the order of the slots that first meet them. */
+static i2m_err_t describe_parts(const i2m_refine_t *r, pieces_t *P, i2m_progress_t *pg)
+{
+  const uint32_t n = i2m_dt_ntets_slots(r->dt);
+  const int64_t nchunks = ((int64_t)n + DESCRIBE_CHUNK - 1) / DESCRIBE_CHUNK;
+  chunk_sums_t *sums = NULL;
+  I2M_CALL(i2m_calloc((size_t)nchunks + 1, sizeof *sums, &sums));
+  I2M_OMP(omp parallel for schedule(dynamic, 1))
+  for (int64_t j = 0; j < nchunks; j++) {
+    const uint32_t t0 = (uint32_t)(j * DESCRIBE_CHUNK), t1 = t0 + DESCRIBE_CHUNK < n ? t0 + DESCRIBE_CHUNK : n;
+    sum_chunk(r, P, t0, t1, &sums[j]);
+    i2m_progress_add(pg, 2 * (int64_t)(t1 - t0)); /* (two of the three passes the progress counts) */
+  }
+  key_index_t H = {NULL, NULL, 0, 0};
+  size_t cap_comp = 0;
+  i2m_err_t err = I2M_OK;
+  for (int64_t j = 0; j < nchunks && err == I2M_OK; j++) { /* merged in chunk order */
+    const chunk_sums_t *s = &sums[j];
+    err = s->err;
+    for (uint32_t i = 0; i < s->nparts && err == I2M_OK; i++) {
+      const part_sum_t *e = &s->part[i];
+      i2m_part_t *p = &P->part[e->part];
+      p->ntets += e->ntets;
+      p->volume += e->volume;
+      key_min(p->key, e->key);
     }
-    i2m_part_comp_t *ce = &P->comp[e];
-    ce->volume += v;
-    if (low <= ce->key[0]) {
-      if (k[0] == INT64_MAX) pieces_tet_key(dt, t, k);
-      if (pieces_key_cmp(k, ce->key) < 0) {
-        memcpy(ce->key, k, sizeof k);
-        ce->seed = t;
+    for (uint32_t i = 0; i < s->ncomps && err == I2M_OK; i++) {
+      const part_sum_t *e = &s->comp[i];
+      uint32_t at;
+      bool added;
+      err = key_index(&H, (uint64_t)(e->part + 1) << 32 | e->comp, &at, &added);
+      if (err == I2M_OK && added && P->ncomps == cap_comp) {
+        cap_comp = 2 * cap_comp + 256;
+        err = i2m_realloc(cap_comp, sizeof *P->comp, &P->comp);
+      }
+      if (err != I2M_OK) break;
+      i2m_part_comp_t *c = &P->comp[at];
+      if (added) {
+        c->part = e->part;
+        c->comp = e->comp;
+        c->volume = 0;
+        c->seed = UINT32_MAX;
+        for (int k = 0; k < 4; k++) c->key[k] = INT64_MAX;
+        P->ncomps++;
+      }
+      c->volume += e->volume;
+      if (pieces_key_cmp(e->key, c->key) < 0) {
+        memcpy(c->key, e->key, sizeof c->key);
+        c->seed = e->seed;
       }
     }
   }
-  i2m_free(&H.key);
-  i2m_free(&H.at);
+  for (int64_t j = 0; j < nchunks; j++) {
+    i2m_free(&sums[j].part);
+    i2m_free(&sums[j].comp);
+  }
+  i2m_free(&sums);
+  key_index_free(&H);
   for (size_t i = 0; i < P->nparts; i++) P->part[i].small = P->part[i].ntets <= pieces_small_tets(r);
   return err;
 }

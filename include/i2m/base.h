@@ -124,6 +124,16 @@ void i2m_free(void *ptr);
  *  a time, which some machines make dearer than it saves. */
 i2m_err_t i2m_realloc_large(size_t n, size_t size, void *ptr);
 
+/* ---- a space-filling curve ---- */
+
+/** The Morton code of the cell of point x in a grid of 2^bits cells along each axis (bits at
+ *  most 10), cell (i, j, k) = floor((x - lo) * scale) clamped to the grid (NaN: 0). */
+uint32_t i2m_morton_code(const double x[3], const double lo[3], const double scale[3], int bits);
+/** Sorts the words a[0..n) (code << 32 | payload) by the low `bits` bits of their codes: a
+ *  stable counting sort, 9 bits a pass, least significant first, with b (n words) as scratch.
+ *  Returns a or b, whichever holds the sorted words. */
+uint64_t *i2m_sort_by_code(uint64_t *a, uint64_t *b, size_t n, int bits);
+
 /* ---- output files ---- */
 
 /** An output file written under a temporary name beside @p path and renamed into place by

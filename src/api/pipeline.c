@@ -131,6 +131,7 @@ static i2m_err_t mesh_in_frame(i2m_pipeline_t *p, const i2m_refine_params_t *par
   if (p->opt.checksum) checksum(p);
   AGREE(p, i2m_refine_extract(p->ref, &p->mesh));
   i2m_refine_release_mesh(p->ref);
+  AGREE(p, i2m_tetmesh_sort(p->mesh)); /* (the triangulation's memory gone first) */
   i2m_pipeline_phase_end(p, I2M_PHASE_EXTRACT);
   int64_t nt = p->mesh->nt;
   i2m_par_sum_i64(p->par, &nt, 1);

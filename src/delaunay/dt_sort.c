@@ -10,56 +10,14 @@
 #include <string.h>
 
 #define AXIS_BITS 6                 /* 64 cells along each axis of the block: a few dozen tets each */
-#define DIGIT_BITS 9                /* two counting passes of 512 buckets */
-#define DIGITS 2                    /* 2 x 9 = the 18 bits of a cell's code */
 #define PREFETCH 16                 /* tets ahead whose first vertex is asked for */
 
-/* x's low AXIS_BITS bits spread to every third bit. */
-static uint32_t spread3(uint32_t x)
-{
-  uint32_t s = 0;
-  for (int b = 0; b < AXIS_BITS; b++) s |= ((x >> b) & 1u) << (3 * b);
-  return s;
-}
-
-/* The Morton code of the cell of tet t's first vertex (clamped to the box [lo, hi]: the
- * tets of the virtual box's corners go to its faces).  One vertex, not the centroid: as good an
- * order, and a quarter of the reads. */
+/* The Morton code of the cell of tet t's first vertex (clamped to the box: the tets of the
+ * virtual box's corners go to its faces).  One vertex, not the centroid: as good an order, and
+ * a quarter of the reads. */
 static uint32_t cell_code(const i2m_dt_t *dt, uint32_t t, const double lo[3], const double scale[3])
 {
-  const double *x = i2m_dt_xyz(dt, dt->tv[4 * (size_t)t]);
-  uint32_t code = 0;
-  for (int a = 0; a < 3; a++) {
-    double u = (x[a] - lo[a]) * scale[a];
-    u = u > 0 ? u : 0; /* (NaN: 0) */
-    const uint32_t q = u < (double)((1u << AXIS_BITS) - 1) ? (uint32_t)u : (1u << AXIS_BITS) - 1;
-    code |= spread3(q) << a;
-  }
-  return code;
-}
-
-/* Sorts the live tets' (code << 32 | old slot) words a[0..n) by code: a stable counting sort
- * of DIGIT_BITS bits at a time, least significant first, with b as scratch. */
-static void sort_by_code(uint64_t *a, uint64_t *b, uint32_t n)
-{
-  enum { R = 1u << DIGIT_BITS };
-  uint32_t count[R];
-  for (int d = 0; d < DIGITS; d++) {
-    const int shift = 32 + d * DIGIT_BITS;
-    memset(count, 0, sizeof count);
-    for (uint32_t i = 0; i < n; i++) count[(a[i] >> shift) & (R - 1)]++;
-    uint32_t sum = 0;
-    for (uint32_t r = 0; r < R; r++) {
-      const uint32_t c = count[r];
-      count[r] = sum;
-      sum += c;
-    }
-    for (uint32_t i = 0; i < n; i++) b[count[(a[i] >> shift) & (R - 1)]++] = a[i];
-    uint64_t *s = a;
-    a = b;
-    b = s;
-  }
-  _Static_assert(DIGITS % 2 == 0, "the sorted words end where they began");
+  return i2m_morton_code(i2m_dt_xyz(dt, dt->tv[4 * (size_t)t]), lo, scale, AXIS_BITS);
 }
 
 /* Each live tet's row of a per-tet array (`width` bytes per slot) into its new slot of dst. */
@@ -101,9 +59,9 @@ i2m_err_t i2m_dt_sort_tets(i2m_dt_t *dt, const double lo[3], const double hi[3])
     if (t + PREFETCH < nt) I2M_PREFETCH(dt->xyzw + 4 * (size_t)dt->tv[4 * (size_t)(t + PREFETCH)]);
     if (i2m_dt_alive(dt, t)) words[n++] = (uint64_t)cell_code(dt, t, lo, scale) << 32 | t;
   }
-  sort_by_code(words, scratch, n);
+  const uint64_t *sorted = i2m_sort_by_code(words, scratch, n, 3 * AXIS_BITS);
   for (uint32_t t = 0; t < nt; t++) new_of[t] = I2M_DT_NONE;
-  for (uint32_t k = 0; k < n; k++) new_of[(uint32_t)words[k]] = k;
+  for (uint32_t k = 0; k < n; k++) new_of[(uint32_t)sorted[k]] = k;
   if (dt->pay_size) { /* (first, while rows has room for the widest row) */
     scatter_rows(dt->tpay, dt->pay_size, new_of, nt, rows);
     memcpy(dt->tpay, rows, (size_t)n * dt->pay_size);

@@ -3,7 +3,8 @@
  * interface triangles meet the angle bound and carry the right label pairs; every label is
  * present with about its voxel volume; a left-handed image frame still gives positive tets;
  * runs are deterministic; bad parameters are refused with a message; the sliver
- * perturbation keeps all of this and never lowers the smallest dihedral angle. */
+ * perturbation keeps all of this and never lowers the smallest dihedral angle; the output
+ * order (tets along a curve, vertices as they first come) keeps the mesh as it was. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -413,6 +414,98 @@ static void test_census_after_fragments(void)
   run_free(&run);
 }
 
+/* Each element as a record of its vertices' coordinates (in its own vertex order) and its
+ * labels, the records sorted: the mesh as a set, whatever the numbering. */
+static double *element_records(const i2m_tetmesh_t *m, bool tets, int64_t *n, int *width)
+{
+  const int per = tets ? 4 : 3, nlab = tets ? 1 : 2;
+  *n = tets ? m->nt : m->ntri;
+  *width = 3 * per + nlab;
+  double *rec = malloc(sizeof *rec * (size_t)(*n ? *n : 1) * (size_t)*width);
+  for (int64_t e = 0; e < *n; e++) {
+    double *d = rec + e * *width;
+    const int32_t *v = (tets ? m->tet : m->tri) + per * e;
+    for (int j = 0; j < per; j++) memcpy(d + 3 * j, m->xyz + 3 * v[j], 3 * sizeof *d);
+    for (int j = 0; j < nlab; j++) d[3 * per + j] = (double)(tets ? m->tet_label[e] : m->tri_label[2 * e + j]);
+  }
+  return rec;
+}
+
+static int record_width;
+static int cmp_record(const void *a, const void *b)
+{
+  const double *x = a, *y = b;
+  for (int i = 0; i < record_width; i++)
+    if (x[i] != y[i]) return x[i] < y[i] ? -1 : 1;
+  return 0;
+}
+
+static void sort_records(double *rec, int64_t n, int width)
+{
+  record_width = width;
+  qsort(rec, (size_t)n, sizeof *rec * (size_t)width, cmp_record);
+}
+
+static int cmp_i64(const void *a, const void *b)
+{
+  const int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+  return (x > y) - (x < y);
+}
+
+/* The median distance, in vertex numbers, between the first vertices of consecutive tets. */
+static int64_t median_step(const i2m_tetmesh_t *m)
+{
+  int64_t *d = malloc(sizeof *d * (size_t)m->nt);
+  for (int64_t t = 1; t < m->nt; t++) d[t - 1] = llabs((int64_t)m->tet[4 * t] - m->tet[4 * (t - 1)]);
+  qsort(d, (size_t)(m->nt - 1), sizeof *d, cmp_i64);
+  const int64_t med = d[(m->nt - 1) / 2];
+  free(d);
+  return med;
+}
+
+/* The output order: tets along a space-filling curve, vertices numbered as they first come,
+ * triangles along the curve too; the same tets (vertex order, hence orientation, kept) and
+ * triangles with their labels, and every guarantee still checked. */
+static void test_output_order(void)
+{
+  double sp[3] = {1, 1, 1};
+  run_t r = {make_image(nested, sp, NULL), NULL, NULL, NULL};
+  i2m_refine_params_t p;
+  i2m_refine_params_default(&p);
+  run_mesher(&r, &p);
+  i2m_tetmesh_t *m = r.mesh;
+  int64_t nt, nf;
+  int wt, wf;
+  double *t0 = element_records(m, true, &nt, &wt), *f0 = element_records(m, false, &nf, &wf);
+  const int64_t nv = m->nv, step0 = median_step(m);
+  CU_ASSERT_FATAL(i2m_tetmesh_sort(m) == I2M_OK);
+  CU_ASSERT_EQUAL(m->nv, nv);
+  double *t1 = element_records(m, true, &nt, &wt), *f1 = element_records(m, false, &nf, &wf);
+  sort_records(t0, nt, wt);
+  sort_records(t1, nt, wt);
+  sort_records(f0, nf, wf);
+  sort_records(f1, nf, wf);
+  CU_ASSERT(memcmp(t0, t1, sizeof *t0 * (size_t)nt * (size_t)wt) == 0);
+  CU_ASSERT(memcmp(f0, f1, sizeof *f0 * (size_t)nf * (size_t)wf) == 0);
+  int32_t next = 0; /* vertices numbered as the tets first use them */
+  bool first_use = true;
+  for (int64_t i = 0; i < 4 * m->nt; i++) {
+    if (m->tet[i] > next) first_use = false;
+    if (m->tet[i] == next) next++;
+  }
+  CU_ASSERT(first_use);
+  CU_ASSERT_EQUAL(next, m->nv);
+  const int64_t step1 = median_step(m);
+  CU_ASSERT(step1 * 20 < m->nv);
+  CU_ASSERT(step1 <= step0);
+  check_mesh(&r, 2.0);
+  free(t0);
+  free(t1);
+  free(f0);
+  free(f1);
+  run_free(&r);
+}
+
 static const test_case_t cases[] = {
     {"nested shells", test_nested_shells},
     {"anisotropic, left-handed frame", test_anisotropic_left_handed},
@@ -422,5 +515,6 @@ static const test_case_t cases[] = {
     {"quality figures of a hand-made mesh", test_quality_figures},
     {"sliver perturbation", test_sliver_perturbation},
     {"census after the fragments' repair", test_census_after_fragments},
+    {"output order along a curve", test_output_order},
 };
 TEST_MAIN("refinement", cases)

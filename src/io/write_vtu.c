@@ -15,8 +15,9 @@
  * a header [blocks, block size, size of the last partial block or 0, compressed size of each
  * block] then the blocks, each compressed on its own); raw with opts->compress false (each
  * array a byte count then the values).  Compressed blocks are made in parallel (independent
- * 1 MiB blocks at zlib level 1, the quickest level that compresses: a knee mesh comes out 3.7
- * times smaller) and held in memory until the XML header, which gives every array's offset,
+ * 1 MiB blocks at zlib level 1, the quickest level that compresses: the knee's mesh at the
+ * default delta comes out 3.1 times smaller than raw, its tets in curve order, i2m_tetmesh_sort)
+ * and held in memory until the XML header, which gives every array's offset,
  * is written; raw arrays are converted chunk by chunk straight into the output buffer. */
 #include "io_impl.h"
 

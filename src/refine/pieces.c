@@ -223,8 +223,8 @@ static void key_index_free(key_index_t *H)
  * so the figures do not depend on the number of threads. */
 #define DESCRIBE_CHUNK 65536
 
-/* A chunk's sums for one part, or for one (part, image component) pair (comp: its root run
- * + 1 as a 32-bit code, UINT32_MAX: beyond), each with its least tet. */
+/* A chunk's sums for one part, or for one (part, image component) pair (comp: the component's
+ * root run, as idx[] holds it), each with its least tet (seed: its slot). */
 typedef struct {
   i2m_gidx_t key[4];
   double volume;

@@ -42,7 +42,8 @@ static inline bool i2m_label_ranks_below(int64_t a, int64_t b)
 /** Puts the tets in the order of a space-filling curve (Morton, of each tet's first vertex in a
  *  grid of 2^8 cells along each axis of the mesh's box; ties in their order before), numbers
  *  the vertices as the tets first use them, and orders the interface triangles along the same
- *  curve: the same mesh, whatever order extraction gave. */
+ *  curve: the same mesh, whatever order extraction gave (a piece of more than 2^32 tets or
+ *  triangles is left in that order). */
 i2m_err_t i2m_tetmesh_sort(i2m_tetmesh_t *m);
 /** Allocates a mesh with room for the given counts (arrays uninitialised, counts set). */
 i2m_err_t i2m_tetmesh_create(int64_t nv, int64_t nt, int64_t ntri, i2m_tetmesh_t **out);

@@ -79,6 +79,7 @@ static i2m_err_t permute_elements(int32_t **vert, int64_t **lab, int per, int la
 i2m_err_t i2m_tetmesh_sort(i2m_tetmesh_t *m)
 {
   if (m->nt == 0 || m->nv == 0) return I2M_OK;
+  if (m->nt > UINT32_MAX || m->ntri > UINT32_MAX) return I2M_OK; /* (a sort word holds a 32-bit index: left as it is) */
   double lo[3], hi[3], scale[3];
   for (int a = 0; a < 3; a++) lo[a] = hi[a] = m->xyz[a];
   for (int64_t v = 1; v < m->nv; v++)

@@ -76,11 +76,10 @@ static i2m_err_t permute_elements(int32_t **vert, int64_t **lab, int per, int la
   return I2M_OK;
 }
 
-i2m_err_t i2m_tetmesh_sort(i2m_tetmesh_t *m)
+/* The grid of the curve: lo and the scale that maps the mesh's box onto 2^ORDER_BITS cells. */
+static void curve_grid(const i2m_tetmesh_t *m, double lo[3], double scale[3])
 {
-  if (m->nt == 0 || m->nv == 0) return I2M_OK;
-  if (m->nt > UINT32_MAX || m->ntri > UINT32_MAX) return I2M_OK; /* (a sort word holds a 32-bit index: left as it is) */
-  double lo[3], hi[3], scale[3];
+  double hi[3];
   for (int a = 0; a < 3; a++) lo[a] = hi[a] = m->xyz[a];
   for (int64_t v = 1; v < m->nv; v++)
     for (int a = 0; a < 3; a++) {
@@ -89,12 +88,58 @@ i2m_err_t i2m_tetmesh_sort(i2m_tetmesh_t *m)
       hi[a] = x > hi[a] ? x : hi[a];
     }
   for (int a = 0; a < 3; a++) scale[a] = hi[a] > lo[a] ? (double)(1u << ORDER_BITS) / (hi[a] - lo[a]) : 0.0;
+}
+
+/* new_of[v]: vertex v's number in the order the tets of sorted[] first use it (a vertex of no
+ * tet, which extraction does not make, comes last). */
+static void number_by_first_use(const i2m_tetmesh_t *m, const uint64_t *sorted, int32_t *new_of)
+{
+  for (int64_t v = 0; v < m->nv; v++) new_of[v] = -1;
+  int32_t next = 0;
+  for (int64_t k = 0; k < m->nt; k++) {
+    const int32_t *tv = m->tet + 4 * (size_t)(uint32_t)sorted[k];
+    for (int j = 0; j < 4; j++)
+      if (new_of[tv[j]] < 0) new_of[tv[j]] = next++;
+  }
+  for (int64_t v = 0; v < m->nv; v++)
+    if (new_of[v] < 0) new_of[v] = next++;
+}
+
+/* Each vertex's coordinates (and global id) moved to its new number. */
+static i2m_err_t move_vertices(i2m_tetmesh_t *m, const int32_t *new_of)
+{
+  double *xyz = NULL;
+  int64_t *gid = NULL;
+  I2M_CALL(i2m_realloc_large((size_t)m->nv * 3, sizeof *xyz, &xyz));
+  const i2m_err_t err = m->gid ? i2m_malloc((size_t)m->nv, sizeof *gid, &gid) : I2M_OK;
+  if (err != I2M_OK) {
+    i2m_free(&xyz);
+    return err;
+  }
+  I2M_OMP(omp parallel for schedule(static))
+  for (int64_t v = 0; v < m->nv; v++) {
+    memcpy(xyz + 3 * (size_t)new_of[v], m->xyz + 3 * (size_t)v, 3 * sizeof *xyz);
+    if (gid) gid[new_of[v]] = m->gid[v];
+  }
+  i2m_free(&m->xyz);
+  m->xyz = xyz;
+  if (gid) {
+    i2m_free(&m->gid);
+    m->gid = gid;
+  }
+  return I2M_OK;
+}
+
+i2m_err_t i2m_tetmesh_sort(i2m_tetmesh_t *m)
+{
+  if (m->nt == 0 || m->nv == 0) return I2M_OK;
+  if (m->nt > UINT32_MAX || m->ntri > UINT32_MAX) return I2M_OK; /* (a sort word holds a 32-bit index: left as it is) */
+  double lo[3], scale[3];
+  curve_grid(m, lo, scale);
   const int64_t nw = m->nt > m->ntri ? m->nt : m->ntri;
   uint64_t *words = NULL, *scratch = NULL;
   int32_t *new_of = NULL;
   uint32_t *vcode = NULL; /* (each vertex's code: the elements' codes read a small array) */
-  double *xyz = NULL;
-  int64_t *gid = NULL;
   i2m_err_t err = I2M_OK;
   I2M_CALL_GOTO(err, done, i2m_malloc((size_t)nw, sizeof *words, &words));
   I2M_CALL_GOTO(err, done, i2m_malloc((size_t)nw, sizeof *scratch, &scratch));
@@ -105,34 +150,12 @@ i2m_err_t i2m_tetmesh_sort(i2m_tetmesh_t *m)
   /* the tets along the curve, their vertices numbered as they first come */
   element_codes(vcode, m->tet, 4, m->nt, words);
   const uint64_t *sorted = i2m_sort_by_code(words, scratch, (size_t)m->nt, 3 * ORDER_BITS);
-  for (int64_t v = 0; v < m->nv; v++) new_of[v] = -1;
-  int32_t next = 0;
-  for (int64_t k = 0; k < m->nt; k++) {
-    const int32_t *tv = m->tet + 4 * (size_t)(uint32_t)sorted[k];
-    for (int j = 0; j < 4; j++)
-      if (new_of[tv[j]] < 0) new_of[tv[j]] = next++;
-  }
-  for (int64_t v = 0; v < m->nv; v++) /* (a vertex of no tet: none from extraction; kept, last) */
-    if (new_of[v] < 0) new_of[v] = next++;
+  number_by_first_use(m, sorted, new_of);
   I2M_CALL_GOTO(err, done, permute_elements(&m->tet, &m->tet_label, 4, 1, m->nt, sorted, new_of));
-  I2M_CALL_GOTO(err, done, i2m_realloc_large((size_t)m->nv * 3, sizeof *xyz, &xyz));
-  if (m->gid) I2M_CALL_GOTO(err, done, i2m_malloc((size_t)m->nv, sizeof *gid, &gid));
-  I2M_OMP(omp parallel for schedule(static))
-  for (int64_t v = 0; v < m->nv; v++) {
-    memcpy(xyz + 3 * (size_t)new_of[v], m->xyz + 3 * (size_t)v, 3 * sizeof *xyz);
-    if (gid) gid[new_of[v]] = m->gid[v];
-  }
-  i2m_free(&m->xyz);
-  m->xyz = xyz;
-  xyz = NULL;
-  if (gid) {
-    i2m_free(&m->gid);
-    m->gid = gid;
-    gid = NULL;
-  }
-  /* the triangles along the curve too */
+  I2M_CALL_GOTO(err, done, move_vertices(m, new_of));
+  /* the triangles along the curve too (vcode is in the old numbers, as the triangles still are) */
   if (m->ntri) {
-    element_codes(vcode, m->tri, 3, m->ntri, words); /* (old numbers: vcode is in the old order) */
+    element_codes(vcode, m->tri, 3, m->ntri, words);
     sorted = i2m_sort_by_code(words, scratch, (size_t)m->ntri, 3 * ORDER_BITS);
     I2M_CALL_GOTO(err, done, permute_elements(&m->tri, &m->tri_label, 3, 2, m->ntri, sorted, new_of));
   }
@@ -141,7 +164,5 @@ done:
   i2m_free(&scratch);
   i2m_free(&new_of);
   i2m_free(&vcode);
-  i2m_free(&xyz);
-  i2m_free(&gid);
   return err;
 }

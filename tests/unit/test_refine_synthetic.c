@@ -137,13 +137,20 @@ static void check_mesh(const run_t *r, double ratio)
   check_orientation(m);
 }
 
-static void test_nested_shells(void)
+/* The nested shells at unit spacing, meshed with default parameters. */
+static void run_nested(run_t *r)
 {
   double sp[3] = {1, 1, 1};
-  run_t r = {make_image(nested, sp, NULL), NULL, NULL, NULL};
+  *r = (run_t){make_image(nested, sp, NULL), NULL, NULL, NULL};
   i2m_refine_params_t p;
   i2m_refine_params_default(&p);
-  run_mesher(&r, &p);
+  run_mesher(r, &p);
+}
+
+static void test_nested_shells(void)
+{
+  run_t r;
+  run_nested(&r);
   check_mesh(&r, 2.0);
   for (int64_t f = 0; f < r.mesh->ntri; f++) {
     int64_t a = r.mesh->tri_label[2 * f], b = r.mesh->tri_label[2 * f + 1];
@@ -468,11 +475,8 @@ static int64_t median_step(const i2m_tetmesh_t *m)
  * triangles with their labels, and every guarantee still checked. */
 static void test_output_order(void)
 {
-  double sp[3] = {1, 1, 1};
-  run_t r = {make_image(nested, sp, NULL), NULL, NULL, NULL};
-  i2m_refine_params_t p;
-  i2m_refine_params_default(&p);
-  run_mesher(&r, &p);
+  run_t r;
+  run_nested(&r);
   i2m_tetmesh_t *m = r.mesh;
   int64_t nt, nf;
   int wt, wf;
